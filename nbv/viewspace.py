@@ -1,0 +1,188 @@
+"""Viewspaces: the candidate camera positions of next-best-view planning.
+
+A viewspace is a ``(V, 3)`` float64 array of camera positions; every camera looks at the origin.
+
+* :func:`original_viewspace` is PC-NBV's 33-view viewspace (radius 1, Y up): for elevation
+  ``a`` in (-90, -60, -30, 0, 30) degrees and azimuth ``b`` in (0, 45, ..., 315) degrees, the third
+  column of ``Ry(b) @ Rx(a)``; of these 40 rows the first seven repeat the pole and are dropped.
+  Row 0 is the top pole, rows 1-8 the ring at elevation 60, 9-16 at 30, 17-24 the equator,
+  25-32 at -30 degrees.
+* :func:`permuted_viewspace` is a seeded set of other directions over the same elevation band
+  (see its docstring); ``data/viewspaces/permuted_33.txt`` holds the one made with the default seed.
+* :func:`load_viewspace` reads any text file of ``V`` rows ``x y z``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+#: The viewspace files that ship with the project.
+DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "viewspaces"
+#: The seed of the shipped permuted viewspace.
+PERMUTED_SEED = 2024
+#: Elevation band of the original viewspace, degrees.
+ELEVATION_BAND = (-30.0, 90.0)
+
+
+def _rot_x(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _rot_y(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def original_viewspace() -> np.ndarray:
+    """PC-NBV's 33 camera positions on the unit sphere, in PC-NBV's order.
+
+    Returns:
+        (33, 3) float64.
+    """
+    rows = [
+        (_rot_y(np.deg2rad(b)) @ _rot_x(np.deg2rad(a)))[:, 2]
+        for a in (-90.0, -60.0, -30.0, 0.0, 30.0)
+        for b in range(0, 360, 45)
+    ]
+    return np.array(rows[7:])
+
+
+def elevation(viewspace: np.ndarray) -> np.ndarray:
+    """Elevation above the XZ plane of each camera direction, in degrees: (V, 3) -> (V,)."""
+    v = np.asarray(viewspace, dtype=np.float64)
+    return np.rad2deg(np.arcsin(np.clip(v[:, 1] / np.linalg.norm(v, axis=1), -1.0, 1.0)))
+
+
+def angular_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angles in degrees between every direction of ``a`` (N, 3) and of ``b`` (M, 3): (N, M)."""
+    ua = a / np.linalg.norm(a, axis=1, keepdims=True)
+    ub = b / np.linalg.norm(b, axis=1, keepdims=True)
+    return np.rad2deg(np.arccos(np.clip(ua @ ub.T, -1.0, 1.0)))
+
+
+def _band_directions(rng: np.random.Generator, n: int, band: tuple[float, float]) -> np.ndarray:
+    """``n`` directions uniform in area over the elevation band (degrees): (n, 3)."""
+    lo, hi = np.sin(np.deg2rad(band[0])), np.sin(np.deg2rad(band[1]))
+    y = rng.uniform(lo, hi, n)
+    azimuth = rng.uniform(0.0, 2.0 * np.pi, n)
+    r = np.sqrt(1.0 - y**2)
+    return np.stack([r * np.sin(azimuth), y, r * np.cos(azimuth)], axis=1)
+
+
+def permuted_viewspace(
+    seed: int = PERMUTED_SEED,
+    n_views: int = 33,
+    min_separation_deg: float = 5.0,
+    candidates: int = 64,
+    reference: np.ndarray | None = None,
+) -> np.ndarray:
+    """A viewspace whose positions and order differ from ``reference`` (default: the original).
+
+    Procedure (Mitchell's best-candidate sampling, seeded): for each new view draw ``candidates``
+    directions uniformly by area over the reference's elevation band (-30 to 90 degrees), discard
+    those within ``min_separation_deg`` of any reference view, and keep the one farthest from the
+    views chosen so far. This spreads the views evenly over the band while no view coincides
+    with a reference view; the order is the order of drawing, unrelated to the reference's.
+
+    Args:
+        seed: seed of the ``numpy.random.Generator``.
+        n_views: number of views.
+        min_separation_deg: minimum angle between any new view and any reference view.
+        candidates: candidates drawn per view (more gives a more even spread).
+        reference: (V, 3) viewspace to avoid; default :func:`original_viewspace`.
+
+    Returns:
+        (n_views, 3) float64 unit vectors.
+    """
+    rng = np.random.default_rng(seed)
+    reference = original_viewspace() if reference is None else np.asarray(reference, np.float64)
+    chosen: list[np.ndarray] = []
+    while len(chosen) < n_views:
+        pool = _band_directions(rng, candidates, ELEVATION_BAND)
+        pool = pool[angular_distances(pool, reference).min(axis=1) >= min_separation_deg]
+        if len(pool) == 0:
+            continue
+        if chosen:
+            best = int(np.argmax(angular_distances(pool, np.array(chosen)).min(axis=1)))
+        else:
+            best = 0
+        chosen.append(pool[best])
+    return np.array(chosen)
+
+
+class ViewspaceError(ValueError):
+    """A viewspace file that cannot be used; the message names the file and line."""
+
+
+def load_viewspace(path: str | Path) -> np.ndarray:
+    """Read a viewspace text file: one camera position ``x y z`` per line.
+
+    Blank lines and lines starting with ``#`` are skipped.
+
+    Args:
+        path: the text file.
+
+    Returns:
+        (V, 3) float64 camera positions.
+
+    Raises:
+        ViewspaceError: for a missing or empty file, a line without exactly three numbers, a NaN
+            or infinite value, a zero vector, or two identical directions; the message names the
+            file and line.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as err:
+        raise ViewspaceError(f"{path}: cannot read viewspace file ({err.strerror})") from err
+    rows: list[np.ndarray] = []
+    lines: list[int] = []
+    for number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        fields = stripped.replace(",", " ").split()
+        if len(fields) != 3:
+            raise ViewspaceError(
+                f"{path}:{number}: expected 3 columns 'x y z', found {len(fields)}: {stripped!r}"
+            )
+        try:
+            row = np.array([float(f) for f in fields])
+        except ValueError as err:
+            raise ViewspaceError(f"{path}:{number}: not a number: {stripped!r}") from err
+        if not np.all(np.isfinite(row)):
+            raise ViewspaceError(f"{path}:{number}: NaN or infinite value: {stripped!r}")
+        if not np.linalg.norm(row) > 0:
+            raise ViewspaceError(f"{path}:{number}: zero vector, a camera needs a direction")
+        for other, other_line in zip(rows, lines):
+            if angular_distances(row[None], other[None])[0, 0] < 1e-6:
+                raise ViewspaceError(
+                    f"{path}:{number}: duplicate of the direction on line {other_line}"
+                )
+        rows.append(row)
+        lines.append(number)
+    if not rows:
+        raise ViewspaceError(f"{path}: no camera positions found (expected rows 'x y z')")
+    return np.array(rows)
+
+
+def save_viewspace(path: str | Path, viewspace: np.ndarray) -> None:
+    """Write a viewspace as text with full float64 precision (``%.18e``)."""
+    np.savetxt(path, np.asarray(viewspace, dtype=np.float64), fmt="%.18e")
+
+
+def get_viewspace(name_or_path: str | Path) -> np.ndarray:
+    """A viewspace by name (``original``, ``permuted``) or by the path of a text file: (V, 3)."""
+    if str(name_or_path) == "original":
+        return original_viewspace()
+    if str(name_or_path) == "permuted":
+        return load_viewspace(DATA_DIR / "permuted_33.txt")
+    path = Path(name_or_path)
+    if not path.exists():
+        raise ViewspaceError(
+            f"{path}: no such viewspace; use 'original', 'permuted' or a text file of 'x y z' rows"
+        )
+    return load_viewspace(path)
