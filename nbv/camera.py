@@ -156,7 +156,8 @@ def backproject(depth: np.ndarray, intrinsics: Intrinsics, pose: np.ndarray) -> 
     depth = np.asarray(depth)
     if depth.shape != (intrinsics.height, intrinsics.width):
         raise ValueError(
-            f"depth image is {depth.shape}, intrinsics expect {(intrinsics.height, intrinsics.width)}"
+            f"depth image is {depth.shape}, the intrinsics expect "
+            f"{(intrinsics.height, intrinsics.width)}"
         )
     mask = valid_depth(depth)
     cam = pixel_rays(intrinsics)[mask] * depth[mask].astype(np.float64)[:, None]

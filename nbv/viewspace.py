@@ -157,7 +157,7 @@ def load_viewspace(path: str | Path) -> np.ndarray:
             raise ViewspaceError(f"{path}:{number}: NaN or infinite value: {stripped!r}")
         if not np.linalg.norm(row) > 0:
             raise ViewspaceError(f"{path}:{number}: zero vector, a camera needs a direction")
-        for other, other_line in zip(rows, lines):
+        for other, other_line in zip(rows, lines, strict=True):
             if angular_distances(row[None], other[None])[0, 0] < 1e-6:
                 raise ViewspaceError(
                     f"{path}:{number}: duplicate of the direction on line {other_line}"

@@ -16,7 +16,9 @@ from nbv.viewspace import (
     save_viewspace,
 )
 
-REFERENCE = Path(__file__).resolve().parents[2] / "shared" / "reference" / "viewspace_original_33.txt"
+REFERENCE = (
+    Path(__file__).resolve().parents[2] / "shared" / "reference" / "viewspace_original_33.txt"
+)
 
 
 def test_original_viewspace_layout():
@@ -31,7 +33,9 @@ def test_original_viewspace_layout():
     np.testing.assert_allclose(vs[19], [1, 0, 0], atol=1e-15)
 
 
-@pytest.mark.skipif(not REFERENCE.exists(), reason="../shared/reference is not beside this checkout")
+@pytest.mark.skipif(
+    not REFERENCE.exists(), reason="../shared/reference is not beside this checkout"
+)
 def test_original_viewspace_matches_reference_file():
     np.testing.assert_allclose(original_viewspace(), np.loadtxt(REFERENCE), rtol=0, atol=1e-12)
 

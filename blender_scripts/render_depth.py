@@ -1,0 +1,358 @@
+"""Render planar depth images of meshes with Cycles, one Blender process for a whole shard.
+
+Runs both ways::
+
+    python blender_scripts/render_depth.py --job job.json                   # the bpy wheel
+    blender -b --factory-startup -P blender_scripts/render_depth.py -- --job job.json
+
+Imports only bpy, numpy and the standard library: a cluster's Blender binary has no ``nbv``.
+
+The job file (JSON)::
+
+    {"width": 640, "height": 480, "fx": 476.0, "fy": 476.0, "cx": 319.5, "cy": 239.5,
+     "threads": 0, "device": "CPU" | "GPU" | "AUTO",
+     "jobs": [{"key": "...", "mesh": "m.npz", "poses": "p.npy", "out": "d.npy"}, ...]}
+
+``mesh`` is an .npz with ``vertices`` (N, 3) and ``faces`` (F, 3) (integer indices);
+``poses`` a .npy of (V, 4, 4) camera-to-world matrices in Blender's camera convention (the
+camera looks along its local -z, +y up: ``matrix_world``). ``out`` receives a (V, H, W) float32
+array of planar depth (camera-frame z, world units), ``inf`` for background, row 0 at the top,
+pixel centres at integer coordinates; it is written atomically.
+
+How depth gets out: the mesh wears one emission material whose strength is the Camera Data
+node's "View Z Depth", so the Combined pass of a one-sample, no-bounce render *is* planar depth.
+It is written as a float32 single-layer EXR (background transparent, alpha 0) and read back with
+``bpy.data.images.load``. This needs neither the compositor (whose Python API changed between
+Blender 4 and 5) nor a multilayer-EXR reader (``Image.pixels`` only gives the Combined pass). A
+pixel filter 0.01 px wide makes the single sample sit at the pixel centre.
+
+Protocol on stdout, one line each, the only lines starting with ``NBV-``::
+
+    NBV-DONE <key>              the key's depth file is complete
+    NBV-FAIL <key> <reason>     the key failed; the process goes on with the next job
+    NBV-FATAL <reason>          the scene could not be set up; the process exits with status 2
+
+Blender's own output is sent to stderr, so it can never be taken for a protocol line.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+from typing import TextIO
+
+import bpy
+import numpy as np
+
+#: Near and far clipping distances, world units (objects sit in a unit sphere, cameras at ~1).
+CLIP_START = 0.01
+CLIP_END = 100.0
+_SENSOR_WIDTH_MM = 36.0
+_GPU_BACKENDS = ("OPTIX", "CUDA", "HIP", "ONEAPI", "METAL")
+_INTRINSIC_KEYS = ("width", "height", "fx", "fy", "cx", "cy")
+
+
+class JobError(ValueError):
+    """A job file or one of its entries is malformed."""
+
+
+def parse_args(argv: list[str]) -> argparse.Namespace:
+    """Parse the script's own arguments: those after ``--`` when present (Blender binary)."""
+    if "--" in argv:
+        argv = argv[argv.index("--") + 1 :]
+    parser = argparse.ArgumentParser(prog="render_depth.py", description=__doc__.split("\n")[0])
+    parser.add_argument("--job", required=True, help="path of the job JSON file")
+    return parser.parse_args(argv)
+
+
+def load_job(path: str) -> dict:
+    """Read and validate a job file (see the module docstring); raises JobError naming the key."""
+    with open(path) as f:
+        spec = json.load(f)
+    for key in _INTRINSIC_KEYS:
+        if not isinstance(spec.get(key), int | float):
+            raise JobError(f"{path}: '{key}' must be a number, got {spec.get(key)!r}")
+    if int(spec["width"]) <= 0 or int(spec["height"]) <= 0:
+        raise JobError(f"{path}: image size must be positive, got {spec['width']}x{spec['height']}")
+    if not (spec["fx"] > 0 and spec["fy"] > 0):
+        raise JobError(f"{path}: fx and fy must be positive, got {spec['fx']}, {spec['fy']}")
+    spec.setdefault("threads", 0)
+    spec.setdefault("device", "CPU")
+    if not isinstance(spec["threads"], int) or spec["threads"] < 0:
+        raise JobError(f"{path}: 'threads' must be an integer >= 0, got {spec['threads']!r}")
+    if spec["device"] not in ("CPU", "GPU", "AUTO"):
+        raise JobError(f"{path}: 'device' must be CPU, GPU or AUTO, got {spec['device']!r}")
+    jobs = spec.get("jobs")
+    if not isinstance(jobs, list):
+        raise JobError(f"{path}: 'jobs' must be a list")
+    for i, job in enumerate(jobs):
+        for key in ("key", "mesh", "poses", "out"):
+            if not isinstance(job.get(key), str):
+                raise JobError(f"{path}: jobs[{i}].{key} must be a string, got {job.get(key)!r}")
+    return spec
+
+
+def _enable_gpu(scene: bpy.types.Scene) -> str | None:
+    """Switch Cycles to the first GPU backend with a device; return its name or None."""
+    addon = bpy.context.preferences.addons.get("cycles")
+    if addon is None:
+        return None
+    prefs = addon.preferences
+    for backend in _GPU_BACKENDS:
+        try:
+            prefs.compute_device_type = backend
+        except TypeError:  # backend not compiled into this Blender
+            continue
+        prefs.get_devices()
+        devices = [d for d in prefs.devices if d.type == backend]
+        if devices:
+            for d in prefs.devices:
+                d.use = d.type == backend
+            scene.cycles.device = "GPU"
+            return backend
+    return None
+
+
+def configure_scene(spec: dict) -> tuple[bpy.types.Scene, bpy.types.Object, bpy.types.Material]:
+    """Empty the default scene and set up Cycles, the camera and the depth material once.
+
+    Returns:
+        (scene, camera object, depth material).
+    """
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.world = None
+    render = scene.render
+    render.engine = "CYCLES"
+    render.resolution_x, render.resolution_y = int(spec["width"]), int(spec["height"])
+    render.resolution_percentage = 100
+    render.film_transparent = True
+    # The camera moves between renders; keeping Cycles' scene (BVH) alive saves a sync per view.
+    render.use_persistent_data = True
+    render.use_compositing = False
+    render.use_sequencer = False
+    render.dither_intensity = 0.0
+    render.use_file_extension = False
+    if spec["threads"]:
+        render.threads_mode = "FIXED"
+        render.threads = int(spec["threads"])
+
+    cycles = scene.cycles
+    cycles.device = "CPU"
+    if spec["device"] in ("GPU", "AUTO") and _enable_gpu(scene) is None and spec["device"] == "GPU":
+        raise RuntimeError("device GPU requested but Cycles finds no GPU")
+    cycles.samples = 1
+    cycles.use_adaptive_sampling = False
+    cycles.use_denoising = False
+    cycles.max_bounces = 0
+    cycles.diffuse_bounces = cycles.glossy_bounces = cycles.transmission_bounces = 0
+    cycles.volume_bounces = cycles.transparent_max_bounces = 0
+    cycles.caustics_reflective = cycles.caustics_refractive = False
+    cycles.sample_clamp_direct = cycles.sample_clamp_indirect = 0.0
+    cycles.film_exposure = 1.0
+    cycles.pixel_filter_type = "BOX"
+    cycles.filter_width = 0.01
+    cycles.seed = 0
+    cycles.use_light_tree = False
+    # The depth sits in the colour channels: nothing may remap them.
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+    scene.view_settings.use_curve_mapping = False
+
+    image = render.image_settings
+    image.file_format = "OPEN_EXR"
+    image.color_mode = "RGBA"
+    image.color_depth = "32"
+    image.exr_codec = "NONE"
+
+    camera_data = bpy.data.cameras.new("nbv_camera")
+    camera = bpy.data.objects.new("nbv_camera", camera_data)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    set_intrinsics(scene, camera_data, spec)
+    return scene, camera, _depth_material()
+
+
+def set_intrinsics(scene: bpy.types.Scene, camera: bpy.types.Camera, spec: dict) -> None:
+    """Make a Blender camera match pinhole intrinsics in the project's pixel convention.
+
+    Pixel centres sit at integer coordinates with row 0 at the top, so the centred principal
+    point is ((W - 1) / 2, (H - 1) / 2). With a horizontal sensor fit Blender's image spans W
+    pixels across ``sensor_width / lens`` at unit distance, pixel height is ``pixel_aspect_y /
+    pixel_aspect_x`` times pixel width, and a shift moves the view by shift * W pixels.
+    """
+    width, height = int(spec["width"]), int(spec["height"])
+    fx, fy, cx, cy = (float(spec[k]) for k in ("fx", "fy", "cx", "cy"))
+    camera.type = "PERSP"
+    camera.sensor_fit = "HORIZONTAL"
+    camera.sensor_width = _SENSOR_WIDTH_MM
+    camera.lens = fx * _SENSOR_WIDTH_MM / width
+    camera.clip_start, camera.clip_end = CLIP_START, CLIP_END
+    # Blender allows pixel aspects >= 1 only: stretch whichever axis has the longer pixels.
+    ratio = fx / fy  # pixel height / pixel width
+    scene.render.pixel_aspect_x = max(1.0, 1.0 / ratio)
+    scene.render.pixel_aspect_y = max(1.0, ratio)
+    camera.shift_x = ((width - 1) / 2.0 - cx) / width
+    camera.shift_y = (cy - (height - 1) / 2.0) * ratio / width
+
+
+def _depth_material() -> bpy.types.Material:
+    """An emission material radiating its own planar camera depth, strength = View Z Depth."""
+    material = bpy.data.materials.new("nbv_depth")
+    if bpy.app.version < (5, 0, 0):
+        material.use_nodes = True
+    nodes, links = material.node_tree.nodes, material.node_tree.links
+    nodes.clear()
+    camera_data = nodes.new("ShaderNodeCameraData")
+    emission = nodes.new("ShaderNodeEmission")
+    emission.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    output = nodes.new("ShaderNodeOutputMaterial")
+    links.new(camera_data.outputs["View Z Depth"], emission.inputs["Strength"])
+    links.new(emission.outputs["Emission"], output.inputs["Surface"])
+    # Camera rays see the emission directly; treating 50k triangles as lights would only cost time.
+    material.cycles.emission_sampling = "NONE"
+    return material
+
+
+def load_mesh(path: str) -> tuple[np.ndarray, np.ndarray]:
+    """Read and check a mesh .npz: (N, 3) float32 vertices and (F, 3) int32 faces."""
+    with np.load(path) as data:
+        for name in ("vertices", "faces"):
+            if name not in data.files:
+                raise JobError(f"{path}: no array '{name}' (has {sorted(data.files)})")
+        vertices = np.asarray(data["vertices"])
+        faces = np.asarray(data["faces"])
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or not np.all(np.isfinite(vertices)):
+        raise JobError(f"{path}: vertices must be finite (N, 3), got shape {vertices.shape}")
+    if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
+        raise JobError(f"{path}: faces must be integer (F, 3), got {faces.dtype} {faces.shape}")
+    if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
+        raise JobError(
+            f"{path}: face indices must lie in [0, {len(vertices)}), "
+            f"got [{faces.min()}, {faces.max()}]"
+        )
+    return vertices.astype(np.float32), faces.astype(np.int32)
+
+
+def load_poses(path: str) -> np.ndarray:
+    """Read and check (V, 4, 4) camera-to-world poses (Blender convention) as float64."""
+    poses = np.load(path)
+    if poses.ndim != 3 or poses.shape[1:] != (4, 4) or not np.all(np.isfinite(poses)):
+        raise JobError(f"{path}: poses must be finite (V, 4, 4), got shape {poses.shape}")
+    return poses.astype(np.float64)
+
+
+def build_mesh(
+    name: str, vertices: np.ndarray, faces: np.ndarray, material: bpy.types.Material
+) -> bpy.types.Mesh:
+    """A Blender mesh of triangles, built with bulk array copies (no per-element Python)."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.vertices.add(len(vertices))
+    mesh.vertices.foreach_set("co", vertices.ravel())
+    mesh.loops.add(faces.size)
+    mesh.loops.foreach_set("vertex_index", faces.ravel())
+    mesh.polygons.add(len(faces))
+    mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, 3, dtype=np.int32))
+    mesh.update(calc_edges=True)
+    # Degenerate or duplicate faces are harmless for depth but may upset Blender; drop them.
+    mesh.validate(verbose=False, clean_customdata=False)
+    mesh.materials.append(material)
+    return mesh
+
+
+def render_view(scene: bpy.types.Scene, exr_path: str) -> np.ndarray:
+    """Render the current camera and read the depth back from the EXR.
+
+    Returns:
+        (H, W) float32 planar depth, inf for background, row 0 at the top.
+    """
+    scene.render.filepath = exr_path
+    bpy.ops.render.render(write_still=True)
+    image = bpy.data.images.load(exr_path, check_existing=False)
+    try:
+        width, height = image.size
+        expected = (scene.render.resolution_x, scene.render.resolution_y)
+        if (width, height) != expected:
+            raise RuntimeError(f"{exr_path}: rendered {width}x{height}, expected {expected}")
+        pixels = np.empty(width * height * 4, dtype=np.float32)
+        image.pixels.foreach_get(pixels)
+    finally:
+        bpy.data.images.remove(image)
+    # Blender stores the bottom row first.
+    rgba = pixels.reshape(height, width, 4)[::-1]
+    return np.where(rgba[..., 3] > 0.5, rgba[..., 0], np.float32(np.inf))
+
+
+def render_job(
+    scene: bpy.types.Scene,
+    camera: bpy.types.Object,
+    material: bpy.types.Material,
+    job: dict,
+    exr_path: str,
+) -> None:
+    """Render every pose of one job and write its (V, H, W) float32 depth atomically."""
+    vertices, faces = load_mesh(job["mesh"])
+    poses = load_poses(job["poses"])
+    mesh = build_mesh(job["key"], vertices, faces, material)
+    obj = bpy.data.objects.new("nbv_mesh", mesh)
+    scene.collection.objects.link(obj)
+    try:
+        depth = np.empty((len(poses), scene.render.resolution_y, scene.render.resolution_x), "f4")
+        for i, pose in enumerate(poses):
+            # bpy matrix properties take a sequence of columns.
+            camera.matrix_world = pose.T.tolist()
+            depth[i] = render_view(scene, exr_path)
+    finally:
+        bpy.data.objects.remove(obj)
+        bpy.data.meshes.remove(mesh)
+    tmp = job["out"] + ".tmp"
+    with open(tmp, "wb") as f:
+        np.save(f, depth)
+    os.replace(tmp, job["out"])
+
+
+def _protocol_stream() -> TextIO:
+    """A private copy of stdout for protocol lines; fd 1 itself is pointed at stderr."""
+    sys.stdout.flush()
+    stream = os.fdopen(os.dup(1), "w", buffering=1)
+    os.dup2(2, 1)
+    return stream
+
+
+def _one_line(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {exc}".replace("\r", " ").replace("\n", " ")
+
+
+def main(argv: list[str]) -> int:
+    """Run a job file; returns the process exit status."""
+    args = parse_args(argv)
+    proto = _protocol_stream()
+    try:
+        spec = load_job(args.job)
+        scene, camera, material = configure_scene(spec)
+    except Exception as exc:  # noqa: BLE001 - reported to the parent, which fails every key
+        print(f"NBV-FATAL {_one_line(exc)}", file=proto, flush=True)
+        return 2
+    tmpdir = tempfile.mkdtemp(prefix="nbv-exr-", dir=os.path.dirname(os.path.abspath(args.job)))
+    try:
+        exr_path = os.path.join(tmpdir, "depth.exr")
+        for job in spec["jobs"]:
+            try:
+                render_job(scene, camera, material, job, exr_path)
+            except Exception as exc:  # noqa: BLE001 - one bad mesh must not stop the shard
+                print(f"NBV-FAIL {job['key']} {_one_line(exc)}", file=proto, flush=True)
+            else:
+                print(f"NBV-DONE {job['key']}", file=proto, flush=True)
+    finally:
+        shutil.rmtree(tmpdir, ignore_errors=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

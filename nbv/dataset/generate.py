@@ -1,0 +1,461 @@
+"""Dataset generation: render every model of a shard, score its views, write the shard file.
+
+The work of one shard:
+
+1. list the source's models and keep those with ``index % num_shards == shard``;
+2. skip the models already complete (in the shard file or in a part file of an interrupted run);
+3. for the rest, batch after batch: normalise the mesh, sample the ground truth, render both
+   viewspaces (one renderer process a batch), back-project, compute coverage bits from the
+   full-resolution views, subsample the clouds, write the model's part file atomically;
+4. assemble the shard file from the parts (atomically) and remove the parts.
+
+Every random draw of a model comes from a generator seeded by ``(seed, key)``, so an interrupted
+and resumed run writes the same arrays as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import tempfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+from tqdm import tqdm
+
+from nbv import meshes
+from nbv.camera import Intrinsics, backproject, viewspace_poses
+from nbv.dataset.schema import (
+    SCHEMA_VERSION,
+    ModelData,
+    ViewData,
+    assemble_shard,
+    config_json,
+    write_part,
+)
+from nbv.dataset.sources import SourceModel, list_models, load_normalised, stable_seed
+from nbv.render import RenderError, RenderJob, render
+from nbv.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
+from nbv.scores import covered_mask, hull_vertices, hull_volume
+from nbv.viewspace import get_viewspace
+
+BACKENDS = ("blender", "raycast")
+
+
+class ConfigError(ValueError):
+    """A setting that cannot be used; the message names the key and what is allowed."""
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Everything ``python -m nbv.dataset`` needs, validated (see ``conf/dataset.yaml``)."""
+
+    out_dir: Path
+    source: str = "synthetic"
+    root: str | None = None
+    categories: tuple[str, ...] | None = None
+    counts: dict[str, int] | None = None
+    split_fractions: dict[str, float] = field(default_factory=dict)
+    seed: int = 0
+    shard: int = 0
+    num_shards: int = 1
+    limit: int | None = None
+    viewspaces: dict[str, str] = field(
+        default_factory=lambda: {"original": "original", "permuted": "permuted"}
+    )
+    intrinsics: Intrinsics = field(default_factory=Intrinsics.centred)
+    n_gt: int = 16384
+    eps: float = 0.00707
+    points_per_view: int = 2048
+    keep_depth: bool = False
+    backend: str = "blender"
+    blender: str | None = None
+    threads: int = 0
+    device: str = "CPU"
+    chunk: int = 16
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("num_shards", self.num_shards >= 1, "an integer >= 1"),
+            ("shard", 0 <= self.shard < self.num_shards, f"in 0..{self.num_shards - 1}"),
+            ("n_gt", self.n_gt >= 1, "an integer >= 1"),
+            ("eps", self.eps > 0, "a positive distance"),
+            ("points_per_view", self.points_per_view >= 0, "an integer >= 0 (0 = all)"),
+            ("renderer.backend", self.backend in BACKENDS, f"one of {', '.join(BACKENDS)}"),
+            ("renderer.chunk", self.chunk >= 1, "an integer >= 1"),
+            ("limit", self.limit is None or self.limit >= 0, "null or an integer >= 0"),
+            ("viewspaces", len(self.viewspaces) >= 1, "at least one name: viewspace entry"),
+        ]
+        for key, ok, allowed in checks:
+            if not ok:
+                raise ConfigError(
+                    f"{key}={getattr(self, key.split('.')[-1], '?')!r}: must be {allowed}"
+                )
+
+    def data_identity(self) -> dict:
+        """The settings that determine the arrays (must match to resume into a folder)."""
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "source": self.source,
+            "root": self.root,
+            "categories": list(self.categories) if self.categories else None,
+            "counts": self.counts,
+            "split_fractions": self.split_fractions,
+            "seed": self.seed,
+            "num_shards": self.num_shards,
+            "viewspaces": self.viewspaces,
+            "camera": asdict(self.intrinsics),
+            "n_gt": self.n_gt,
+            "eps": self.eps,
+            "points_per_view": self.points_per_view,
+            "keep_depth": self.keep_depth,
+            "backend": self.backend,
+        }
+
+
+@dataclass
+class Summary:
+    """What one run of a shard did."""
+
+    shard_file: Path
+    total: int = 0
+    skipped: int = 0
+    produced: int = 0
+    failures: list[tuple[str, str]] = field(default_factory=list)
+
+    @property
+    def complete(self) -> int:
+        return self.skipped + self.produced
+
+    def __str__(self) -> str:
+        lines = [
+            f"{self.shard_file}: {self.complete}/{self.total} models "
+            f"({self.produced} made now, {self.skipped} already done, {len(self.failures)} failed)"
+        ]
+        lines += [f"  failed {key}: {reason}" for key, reason in self.failures]
+        return "\n".join(lines)
+
+
+def shard_name(shard: int, num_shards: int) -> str:
+    """File name of a shard: ``shard-00003-of-00008.h5``."""
+    return f"shard-{shard:05d}-of-{num_shards:05d}.h5"
+
+
+def _offsets(arrays: list[np.ndarray]) -> np.ndarray:
+    """(len + 1,) int64 start offsets of arrays stored one after the other."""
+    return np.concatenate([[0], np.cumsum([len(a) for a in arrays])]).astype(np.int64)
+
+
+def view_data(
+    depth: np.ndarray,
+    poses: np.ndarray,
+    intrinsics: Intrinsics,
+    gt_points: np.ndarray,
+    eps: float,
+    points_per_view: int,
+    rng: np.random.Generator,
+    keep_depth: bool = False,
+) -> ViewData:
+    """Back-project, score and subsample the depth images of one viewspace.
+
+    Args:
+        depth: (V, H, W) planar depth, inf for background.
+        poses: (V, 4, 4) camera-to-world.
+        intrinsics: the camera.
+        gt_points: (n_gt, 3) ground truth the coverage bits refer to.
+        eps: coverage threshold, world units.
+        points_per_view: points kept per view (random subset); 0 keeps all.
+        rng: generator of the subsets.
+        keep_depth: also return the depth images as float16.
+
+    Returns:
+        The viewspace's :class:`ViewData`; coverage bits come from the full-resolution clouds.
+
+    Raises:
+        RenderError: no view shows anything of the object. (A single empty view is kept: a flat
+            object seen edge-on shows nothing.)
+    """
+    kept, bits, hulls = [], [], []
+    for v in range(len(depth)):
+        points = backproject(depth[v], intrinsics, poses[v])
+        bits.append(np.packbits(covered_mask(points, gt_points, eps)))
+        hulls.append(hull_vertices(points).astype(np.float32))
+        if 0 < points_per_view < len(points):
+            points = points[np.sort(rng.choice(len(points), points_per_view, replace=False))]
+        kept.append(points.astype(np.float32))
+    if not any(len(p) for p in kept):
+        raise RenderError("empty render: no view shows anything of the object")
+    return ViewData(
+        poses=poses,
+        points=np.concatenate(kept),
+        offsets=_offsets(kept),
+        coverage=np.stack(bits),
+        hull_points=np.concatenate(hulls),
+        hull_offsets=_offsets(hulls),
+        points_per_view=points_per_view,
+        depth=depth.astype(np.float16) if keep_depth else None,
+    )
+
+
+def _completed_keys(shard_file: Path, parts_dir: Path) -> tuple[dict[str, Path], list]:
+    """Models already complete (key -> file holding them) and the failures recorded before."""
+    done: dict[str, Path] = {}
+    failures: list = []
+    if shard_file.exists():
+        with h5py.File(shard_file, "r") as handle:
+            done.update({key: shard_file for key in handle.get("models", {})})
+            if "failures" in handle:
+                failures = [tuple(s.decode() for s in row) for row in handle["failures"][()]]
+    if parts_dir.exists():
+        done.update({p.stem: p for p in sorted(parts_dir.glob("*.h5"))})
+    return done, failures
+
+
+def _check_identity(settings: Settings, shard_file: Path, parts_dir: Path) -> None:
+    """Refuse to mix data made with other settings into an existing shard."""
+    wanted = config_json(settings.data_identity())
+    found = None
+    if shard_file.exists():
+        with h5py.File(shard_file, "r") as handle:
+            found = handle.attrs.get("config")
+    elif (parts_dir / "config.json").exists():
+        found = (parts_dir / "config.json").read_text()
+    if found is not None and found != wanted:
+        old, new = json.loads(found), json.loads(wanted)
+        differ = {k: (old.get(k), new.get(k)) for k in new if old.get(k) != new.get(k)}
+        raise ConfigError(
+            f"{settings.out_dir} holds data made with other settings {differ} (old, new); "
+            "use another out_dir or delete that folder"
+        )
+    parts_dir.mkdir(parents=True, exist_ok=True)
+    (parts_dir / "config.json").write_text(wanted)
+
+
+def _root_attrs(settings: Settings) -> dict:
+    k = settings.intrinsics
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "eps": settings.eps,
+        "n_gt": settings.n_gt,
+        "width": k.width,
+        "height": k.height,
+        "fx": k.fx,
+        "fy": k.fy,
+        "cx": k.cx,
+        "cy": k.cy,
+        "seed": settings.seed,
+        "config": config_json(settings.data_identity()),
+    }
+
+
+@dataclass
+class _Prepared:
+    model: SourceModel
+    center: np.ndarray
+    scale: float
+    gt_points: np.ndarray
+    rng: np.random.Generator
+
+
+def _prepare(model: SourceModel, settings: Settings, poses: np.ndarray):
+    """Normalise the mesh and sample the ground truth: (render job, prepared) of one model."""
+    rng = np.random.default_rng(stable_seed(settings.seed, model.key))
+    mesh, center, scale = load_normalised(model, settings.seed)
+    gt = meshes.sample_surface(mesh, settings.n_gt, rng)
+    job = RenderJob(model.key, mesh.vertices, mesh.faces, poses)
+    return job, _Prepared(model, center, scale, gt, rng)
+
+
+def _finish(prep: _Prepared, depth: np.ndarray, poses: dict, settings: Settings) -> ModelData:
+    """Turn one model's rendered depth (all viewspaces stacked) into its dataset record."""
+    views, start = {}, 0
+    for name, vs_poses in poses.items():
+        stop = start + len(vs_poses)
+        views[name] = view_data(
+            depth[start:stop],
+            vs_poses,
+            settings.intrinsics,
+            prep.gt_points,
+            settings.eps,
+            settings.points_per_view,
+            prep.rng,
+            settings.keep_depth,
+        )
+        start = stop
+    m = prep.model
+    return ModelData(
+        key=m.key,
+        category=m.category,
+        split=m.split,
+        source=m.source,
+        source_path=m.source_path,
+        center=prep.center,
+        scale=prep.scale,
+        seed=settings.seed,
+        gt_points=prep.gt_points,
+        gt_hull_volume=hull_volume(prep.gt_points),
+        views=views,
+    )
+
+
+def generate(settings: Settings) -> Summary:
+    """Generate (or resume) one shard of a dataset; see the module docstring.
+
+    Returns:
+        The run's :class:`Summary`; per-model failures are recorded, not raised.
+    """
+    models = list_models(
+        settings.source,
+        settings.root,
+        list(settings.categories) if settings.categories else None,
+        settings.counts,
+        settings.split_fractions,
+        settings.seed,
+    )
+    mine = models[settings.shard :: settings.num_shards]
+    if settings.limit is not None:
+        mine = mine[: settings.limit]
+    out_dir = Path(settings.out_dir)
+    name = shard_name(settings.shard, settings.num_shards)
+    shard_file = out_dir / name
+    parts_dir = out_dir / f".parts-{name[:-3]}"
+    _check_identity(settings, shard_file, parts_dir)
+    viewspaces = {n: get_viewspace(v) for n, v in settings.viewspaces.items()}
+    poses = {n: viewspace_poses(vs) for n, vs in viewspaces.items()}
+    all_poses = np.concatenate(list(poses.values()))
+    root_attrs = _root_attrs(settings)
+
+    done, old_failures = _completed_keys(shard_file, parts_dir)
+    summary = Summary(shard_file, total=len(mine), skipped=sum(m.key in done for m in mine))
+    todo = [m for m in mine if m.key not in done]
+    bar = tqdm(
+        total=len(mine),
+        initial=summary.skipped,
+        desc=name,
+        unit="model",
+        disable=not settings.progress,
+    )
+    with tempfile.TemporaryDirectory(prefix="nbv-render-") as workdir:
+        for start in range(0, len(todo), settings.chunk):
+            jobs, prepared = [], {}
+            for model in todo[start : start + settings.chunk]:
+                try:
+                    job, prepared[model.key] = _prepare(model, settings, all_poses)
+                    jobs.append(job)
+                except (meshes.MeshError, ValueError) as err:
+                    summary.failures.append((model.key, str(err)))
+                    bar.update()
+            results = render(
+                jobs,
+                settings.intrinsics,
+                backend=settings.backend,
+                workdir=Path(workdir),
+                blender=settings.blender,
+                threads=settings.threads,
+                device=settings.device,
+            )
+            for key, depth in results:
+                try:
+                    if isinstance(depth, Exception):
+                        raise depth
+                    record = _finish(prepared.pop(key), depth, poses, settings)
+                    part = parts_dir / f"{key}.h5"
+                    write_part(part, root_attrs, viewspaces, record)
+                    done[key] = part
+                    summary.produced += 1
+                except RenderError as err:
+                    summary.failures.append((key, str(err)))
+                bar.update()
+    bar.close()
+    failed_now = {key for key, _ in summary.failures}
+    summary.failures += [(k, r) for k, r in old_failures if k not in done and k not in failed_now]
+    sources = [(done[m.key], m.key) for m in mine if m.key in done]
+    if sources or summary.failures:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        assemble_shard(shard_file, root_attrs, viewspaces, sources, summary.failures)
+    shutil.rmtree(parts_dir, ignore_errors=True)
+    return summary
+
+
+def settings_from_config(cfg) -> Settings:
+    """Build :class:`Settings` from the hydra config of ``conf/dataset.yaml``."""
+    from omegaconf import OmegaConf
+
+    c = OmegaConf.to_container(cfg, resolve=True)
+    known = {
+        "source", "root", "categories", "synthetic", "split_fractions", "seed", "out_dir",
+        "shard", "num_shards", "limit", "viewspaces", "camera", "n_gt", "eps",
+        "points_per_view", "keep_depth", "renderer", "progress", "samples",
+    }  # fmt: skip
+    unknown = sorted(set(c) - known - {"hydra"})
+    if unknown:
+        raise ConfigError(f"unknown keys {unknown}; allowed: {sorted(known)}")
+    camera, renderer = c["camera"], c["renderer"]
+    return Settings(
+        out_dir=Path(c["out_dir"]),
+        source=c["source"],
+        root=c["root"],
+        categories=tuple(c["categories"]) if c["categories"] else None,
+        counts=dict(c["synthetic"]["counts"]),
+        split_fractions=dict(c["split_fractions"]),
+        seed=int(c["seed"]),
+        shard=int(c["shard"]),
+        num_shards=int(c["num_shards"]),
+        limit=c["limit"],
+        viewspaces=dict(c["viewspaces"]),
+        intrinsics=Intrinsics.centred(
+            int(camera["width"]), int(camera["height"]), float(camera["focal"])
+        ),
+        n_gt=int(c["n_gt"]),
+        eps=float(c["eps"]),
+        points_per_view=int(c["points_per_view"]),
+        keep_depth=bool(c["keep_depth"]),
+        backend=renderer["backend"],
+        blender=renderer["blender"],
+        threads=int(renderer["threads"]),
+        device=str(renderer["device"]),
+        chunk=int(renderer["chunk"]),
+        progress=bool(c["progress"]),
+    )
+
+
+def sample_settings_from_config(cfg) -> SampleSettings | None:
+    """The ``samples:`` block of ``conf/dataset.yaml`` (None when disabled)."""
+    from omegaconf import OmegaConf
+
+    c = dict(OmegaConf.to_container(cfg.samples, resolve=True))
+    if not c.pop("enabled", True):
+        return None
+    allowed = set(SampleSettings.__dataclass_fields__) - {"seed"}
+    unknown = sorted(set(c) - allowed)
+    if unknown:
+        raise ConfigError(f"unknown keys samples.{unknown}; allowed: {sorted(allowed)}")
+    c["scores"] = tuple(c.get("scores", SampleSettings.scores))
+    return SampleSettings(**c, seed=int(cfg.seed))
+
+
+def run(settings: Settings, sample_settings: SampleSettings | None) -> int:
+    """Generate the shard, then its training samples; print the summary; return the exit status."""
+    summary = generate(settings)
+    report(summary)
+    if sample_settings is not None and summary.shard_file.exists() and summary.complete:
+        if samples_up_to_date(summary.shard_file, sample_settings):
+            print(f"{samples_path(summary.shard_file)}: up to date")
+        else:
+            out, skipped = write_samples(summary.shard_file, sample_settings, settings.progress)
+            print(f"{out}: written" + "".join(f"\n  skipped {k} ({s}): {r}" for k, s, r in skipped))
+    return exit_status(summary)
+
+
+def exit_status(summary: Summary) -> int:
+    """0 when the shard holds a model (or had nothing to do); 1 when nothing could be made."""
+    return 1 if summary.total > 0 and summary.complete == 0 else 0
+
+
+def report(summary: Summary) -> None:
+    """Print the run's summary for a person."""
+    print(summary, file=sys.stderr if summary.failures else sys.stdout)

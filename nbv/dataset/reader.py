@@ -1,0 +1,138 @@
+"""Reading a dataset: all shard files of a folder seen as one."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from nbv.camera import Intrinsics
+from nbv.dataset.schema import ROOT_ATTRS, ModelData, read_model
+
+SHARD_GLOB = "shard-*-of-*.h5"
+
+
+class DatasetError(ValueError):
+    """A dataset that cannot be read; the message names the file."""
+
+
+class Dataset:
+    """Read access to every model of one or more shard files.
+
+    Use :func:`open_dataset` (exported as ``nbv.dataset.open``). Models are read lazily, one at a
+    time; the object holds only the index (key -> file) and the shared root attributes.
+
+    Attributes:
+        files: the shard files, sorted.
+        attrs: root attributes shared by all shards (schema_version, eps, n_gt, camera, ...).
+        viewspaces: name -> (V, 3) float64 camera positions.
+        index: key -> (file, category, split), in file order.
+        failures: (key, reason) of models that could not be produced.
+    """
+
+    def __init__(self, files: list[Path]):
+        self.files = files
+        self.index: dict[str, tuple[Path, str, str]] = {}
+        self.failures: list[tuple[str, str]] = []
+        self.attrs: dict = {}
+        self.viewspaces: dict[str, np.ndarray] = {}
+        for file in files:
+            self._add(file)
+
+    def _add(self, file: Path) -> None:
+        try:
+            handle = h5py.File(file, "r")
+        except OSError as err:
+            raise DatasetError(f"{file}: not a readable HDF5 file ({err})") from err
+        with handle:
+            missing = [name for name in ROOT_ATTRS if name not in handle.attrs]
+            if missing:
+                raise DatasetError(f"{file}: not a dataset shard, root attributes {missing} absent")
+            attrs = {name: _plain(value) for name, value in handle.attrs.items()}
+            if not self.attrs:
+                self.attrs = attrs
+                self.viewspaces = {k: v[()] for k, v in handle["viewspaces"].items()}
+            else:
+                differ = [k for k in ROOT_ATTRS if attrs[k] != self.attrs[k]]
+                if differ:
+                    raise DatasetError(
+                        f"{file}: settings {differ} differ from {self.files[0]}; shards of one "
+                        "dataset must be generated with the same settings"
+                    )
+            for key, group in handle.get("models", {}).items():
+                if key in self.index:
+                    raise DatasetError(f"{file}: model {key!r} also in {self.index[key][0]}")
+                self.index[key] = (file, str(group.attrs["category"]), str(group.attrs["split"]))
+            if "failures" in handle:
+                self.failures += [(_text(k), _text(r)) for k, r in handle["failures"][()]]
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.index)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self.index
+
+    def __getitem__(self, key: str) -> ModelData:
+        return self.model(key)
+
+    def model(self, key: str, viewspaces: tuple[str, ...] | None = None) -> ModelData:
+        """Read one model (all viewspaces unless named)."""
+        if key not in self.index:
+            raise KeyError(f"model {key!r} is not in this dataset ({len(self)} models)")
+        with h5py.File(self.index[key][0], "r") as handle:
+            return read_model(handle[f"models/{key}"], viewspaces)
+
+    def keys(self, split: str | None = None, category: str | None = None) -> list[str]:
+        """Model keys, optionally only of one split and/or category."""
+        return [
+            k
+            for k, (_, cat, spl) in self.index.items()
+            if (split is None or spl == split) and (category is None or cat == category)
+        ]
+
+    @property
+    def categories(self) -> list[str]:
+        """Categories present, in order of first appearance."""
+        return list(dict.fromkeys(cat for _, cat, _ in self.index.values()))
+
+    @property
+    def intrinsics(self) -> Intrinsics:
+        """The camera the views were rendered with."""
+        a = self.attrs
+        return Intrinsics(int(a["width"]), int(a["height"]), a["fx"], a["fy"], a["cx"], a["cy"])
+
+
+def _text(value) -> str:
+    return value.decode() if isinstance(value, bytes) else str(value)
+
+
+def _plain(value):
+    """HDF5 attribute -> plain Python value (comparable with ==)."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return _text(value) if isinstance(value, bytes) else value
+
+
+def shard_files(path: str | Path) -> list[Path]:
+    """The shard files of a dataset folder (or the one file given)."""
+    path = Path(path)
+    if path.is_file():
+        return [path]
+    if path.is_dir():
+        files = sorted(path.glob(SHARD_GLOB))
+        if not files:
+            raise DatasetError(f"{path}: no shard files ({SHARD_GLOB}); run `make dataset` first")
+        return files
+    raise DatasetError(f"{path}: no such dataset file or folder; run `make dataset` first")
+
+
+def open_dataset(path: str | Path) -> Dataset:
+    """Open a dataset: one shard file, or a folder whose shards are read as one dataset."""
+    return Dataset(shard_files(path))

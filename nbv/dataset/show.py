@@ -1,0 +1,87 @@
+"""``python -m nbv.dataset.show <file or folder> <model> [--out PNG]``: draw a model's views.
+
+The picture holds one panel per view (the depth image when the dataset kept it, else the view's
+stored points projected back into its camera, coloured by depth) and the merged cloud of all views
+beside the ground truth.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from nbv.camera import Intrinsics, project  # noqa: E402
+from nbv.dataset.reader import open_dataset  # noqa: E402
+from nbv.dataset.schema import ModelData  # noqa: E402
+
+
+def depth_panel(ax, model: ModelData, viewspace: str, v: int, intrinsics: Intrinsics) -> None:
+    """Draw view ``v``'s depth image (or its projected points) into ``ax``."""
+    view = model.views[viewspace]
+    if view.depth is not None:
+        depth = view.depth[v].astype(np.float32)
+        ax.imshow(np.where(np.isfinite(depth), depth, np.nan), cmap="viridis")
+    else:
+        uv, z = project(view.view_points(v), intrinsics, view.poses[v])
+        ax.scatter(uv[:, 0], uv[:, 1], c=z, s=0.3, cmap="viridis", linewidths=0)
+        ax.set_xlim(0, intrinsics.width)
+        ax.set_ylim(intrinsics.height, 0)
+        ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.set_title(str(v), fontsize=7, pad=2)
+
+
+def draw_model(model: ModelData, intrinsics: Intrinsics, viewspace: str, out: Path) -> Path:
+    """Write the PNG of one model's views and clouds; returns its path."""
+    if viewspace not in model.views:
+        raise KeyError(f"viewspace {viewspace!r} not stored; have {sorted(model.views)}")
+    n_views = len(model.views[viewspace].poses)
+    cols = 8
+    rows = -(-n_views // cols)
+    fig = plt.figure(figsize=(cols * 1.6 + 6, max(rows, 3) * 1.3 + 0.6))
+    grid = fig.add_gridspec(max(rows, 3), cols + 4)
+    for v in range(n_views):
+        depth_panel(fig.add_subplot(grid[v // cols, v % cols]), model, viewspace, v, intrinsics)
+    view = model.views[viewspace]
+    ax = fig.add_subplot(grid[:, cols:], projection="3d")
+    gt = model.gt_points
+    ax.scatter(gt[:, 0], gt[:, 2], gt[:, 1], s=0.2, c="lightgray", label="ground truth")
+    merged = view.points[:: max(1, len(view.points) // 20000)]
+    ax.scatter(merged[:, 0], merged[:, 2], merged[:, 1], s=0.3, c=merged[:, 1], cmap="plasma")
+    cams = view.poses[:, :3, 3]
+    ax.scatter(cams[:, 0], cams[:, 2], cams[:, 1], c="red", s=8, label="cameras")
+    ax.set_box_aspect((1, 1, 1))
+    ax.set_xlabel("x")
+    ax.set_ylabel("z")
+    ax.set_zlabel("y (up)")
+    ax.legend(loc="upper left", fontsize=7)
+    fig.suptitle(f"{model.key} ({model.category}, {model.split}), viewspace {viewspace}")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("dataset", help="a shard file or a dataset folder")
+    parser.add_argument("model", help="model key, e.g. chair_0000")
+    parser.add_argument("--viewspace", default="original")
+    parser.add_argument("--out", type=Path, default=None, help="PNG path (default <model>.png)")
+    args = parser.parse_args(argv)
+    dataset = open_dataset(args.dataset)
+    if args.model not in dataset:
+        parser.error(f"model {args.model!r} not in {args.dataset}; some keys: {list(dataset)[:8]}")
+    out = args.out or Path(f"{args.model}_{args.viewspace}.png")
+    print(draw_model(dataset[args.model], dataset.intrinsics, args.viewspace, out))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,473 @@
+"""PCNBV: the point-cloud next-best-view network, and its checkpoints.
+
+The network reads a point cloud and the view state and predicts, for each of the ``V`` candidate
+views, the coverage gain that view would add. It follows the architecture described in
+``FACTS.md`` (PC-NBV, Zeng et al. 2020, with the PyTorch port's batch norm and input
+normalisation); the same class serves PCNBV-sph, whose input points are the spherical-signature
+points instead of the accumulated cloud.
+
+Data flow for one sample (``C`` = channels, defaults in brackets)::
+
+    points (N, 3) ──normalise──► 1x1 conv 3 -> 24 ──► 4 dense EdgeConv blocks ──► (N, 264)
+    concat[per-point (264), global max (264) tiled, view state (V) tiled] ──► (N, 561)
+    self-attention (N, 561) ──► 1x1 convs 561 -> 1024 -> 1024 ──► max over points (1024)
+    fully connected 1024 -> 512 -> 256 -> V (linear output)
+
+Internally features are laid out points-last-but-one, ``(B, N, C)``, so every "1x1 conv" is a
+single matrix product (``nn.Linear``) over the channel axis.
+
+Public API: :class:`PCNBVConfig`, :class:`PCNBV`, :func:`masked_argmax`,
+:func:`count_parameters`, :func:`save_checkpoint`, :func:`load_checkpoint`,
+:class:`CheckpointError`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import torch
+import torch.nn.functional as F
+from torch import Tensor, nn
+
+#: Written into every checkpoint so that foreign files are recognised.
+CHECKPOINT_FORMAT = "nbv.net.PCNBV"
+#: Bumped when the checkpoint layout changes incompatibly.
+CHECKPOINT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class PCNBVConfig:
+    """Sizes of a :class:`PCNBV` network. The defaults are PC-NBV's (264 channels a point, 561
+    after concatenation with 33 views).
+
+    Attributes:
+        n_views: V, the number of candidate views (length of the view state and the output).
+        k: neighbours of each point in a dense EdgeConv block (the point itself included).
+        growth: channels each dense layer adds.
+        dense_layers: layers in a dense block.
+        blocks: dense blocks in the feature extractor.
+        first_channels: width of the first 1x1 conv and the input width of every dense block.
+        attention_channels: width of the attention query and key.
+        conv_channels: widths of the 1x1 convs after the attention.
+        fc_channels: widths of the hidden fully connected layers.
+        batch_norm: batch norm after every hidden conv (the PyTorch port's choice); without it
+            the convs carry a bias instead.
+        normalize_input: centre each cloud at its centroid and scale it to unit max radius.
+            Turn it off for inputs whose position and scale carry information.
+    """
+
+    n_views: int = 33
+    k: int = 16
+    growth: int = 12
+    dense_layers: int = 3
+    blocks: int = 4
+    first_channels: int = 24
+    attention_channels: int = 140
+    conv_channels: tuple[int, ...] = (1024, 1024)
+    fc_channels: tuple[int, ...] = (512, 256)
+    batch_norm: bool = True
+    normalize_input: bool = True
+
+    def __post_init__(self) -> None:
+        for name in (
+            "n_views",
+            "k",
+            "growth",
+            "dense_layers",
+            "blocks",
+            "first_channels",
+            "attention_channels",
+        ):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"PCNBVConfig.{name} must be a positive int, got {value!r}")
+        for name in ("conv_channels", "fc_channels"):
+            value = getattr(self, name)
+            if not isinstance(value, tuple | list) or not all(
+                isinstance(c, int) and not isinstance(c, bool) and c >= 1 for c in value
+            ):
+                raise ValueError(
+                    f"PCNBVConfig.{name} must be a sequence of positive ints, got {value!r}"
+                )
+            # Lists come back from checkpoints and hydra; store a tuple so configs compare equal.
+            object.__setattr__(self, name, tuple(value))
+        if not self.conv_channels:
+            raise ValueError("PCNBVConfig.conv_channels must hold at least one width, got ()")
+        for name in ("batch_norm", "normalize_input"):
+            if not isinstance(getattr(self, name), bool):
+                raise ValueError(f"PCNBVConfig.{name} must be a bool, got {getattr(self, name)!r}")
+
+    @property
+    def block_out_channels(self) -> int:
+        """Channels a dense block outputs: ``dense_layers * growth + first_channels`` (60)."""
+        return self.dense_layers * self.growth + self.first_channels
+
+    @property
+    def point_channels(self) -> int:
+        """Channels a point has after the feature extractor (264)."""
+        return self.first_channels + self.blocks * self.block_out_channels
+
+    @property
+    def concat_channels(self) -> int:
+        """Channels a point has after concatenating global feature and view state (561)."""
+        return 2 * self.point_channels + self.n_views
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-type dict (lists for tuples) that :meth:`from_dict` reads back."""
+        return {
+            f.name: list(v) if isinstance(v := getattr(self, f.name), tuple) else v
+            for f in dataclasses.fields(self)
+        }
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> PCNBVConfig:
+        """Build a config from :meth:`to_dict`'s output; unknown keys raise ``ValueError``."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(values) - names)
+        if unknown:
+            raise ValueError(f"unknown PCNBVConfig keys {unknown}; allowed: {sorted(names)}")
+        return cls(**dict(values))
+
+
+class _Pointwise(nn.Module):
+    """Shared ``Linear`` over the last axis (a 1x1 conv), optional batch norm over every other
+    position, optional ReLU: ``(..., C_in) -> (..., C_out)``."""
+
+    def __init__(self, c_in: int, c_out: int, batch_norm: bool, relu: bool = True) -> None:
+        super().__init__()
+        self.linear = nn.Linear(c_in, c_out, bias=not batch_norm)
+        self.norm = nn.BatchNorm1d(c_out) if batch_norm else None
+        self.relu = relu
+
+    def forward(self, x: Tensor) -> Tensor:
+        y = self.linear(x)
+        if self.norm is not None:
+            y = self.norm(y.reshape(-1, y.shape[-1])).reshape(y.shape)
+        return F.relu(y) if self.relu else y
+
+
+def knn_indices(x: Tensor, k: int) -> Tensor:
+    """Indices of the ``k`` nearest neighbours of every point in feature space, the point itself
+    always first (its distance is forced to ``-inf``, so rounding cannot push it out).
+
+    Args:
+        x: (B, N, C) float features; ``k <= N``.
+        k: neighbours per point, self included.
+
+    Returns:
+        (B, N, k) int64 indices into the N axis; not differentiable.
+    """
+    with torch.no_grad():
+        sq = (x * x).sum(-1)
+        dist = sq.unsqueeze(2) + sq.unsqueeze(1) - 2.0 * (x @ x.transpose(1, 2))
+        dist.diagonal(dim1=1, dim2=2).fill_(-math.inf)
+        return dist.topk(k, dim=-1, largest=False, sorted=False).indices
+
+
+def gather_neighbours(x: Tensor, idx: Tensor) -> Tensor:
+    """Features of each point's neighbours: x (B, N, C), idx (B, N, k) -> (B, N, k, C)."""
+    b, n, c = x.shape
+    offset = torch.arange(b, device=x.device).view(b, 1, 1) * n
+    return x.reshape(b * n, c)[idx + offset]
+
+
+class DenseEdgeConv(nn.Module):
+    """A dense EdgeConv block (PU-GAN style): (B, N, C) -> (B, N, dense_layers * growth + C).
+
+    Neighbours are the ``k`` nearest in the block's input feature space, the point itself
+    included. Edge feature ``e_ij = [x_j - x_i, x_i]``; layer 1 maps it to ``growth`` channels
+    and appends ``x_i``; every further layer maps everything so far to ``growth`` more channels
+    and prepends them; the block ends with a max over the neighbours.
+    """
+
+    def __init__(self, c_in: int, growth: int, layers: int, k: int, batch_norm: bool) -> None:
+        super().__init__()
+        self.k = k
+        widths = [2 * c_in] + [c_in + i * growth for i in range(1, layers)]
+        self.layers = nn.ModuleList(_Pointwise(w, growth, batch_norm) for w in widths)
+
+    def forward(self, x: Tensor) -> Tensor:
+        idx = knn_indices(x, self.k)
+        centre = x.unsqueeze(2).expand(-1, -1, self.k, -1)
+        y = torch.cat([gather_neighbours(x, idx) - centre, centre], dim=-1)
+        y = torch.cat([self.layers[0](y), centre], dim=-1)
+        for layer in self.layers[1:]:
+            y = torch.cat([layer(y), y], dim=-1)
+        return y.amax(dim=2)
+
+
+class FeatureExtractor(nn.Module):
+    """The dense EdgeConv feature extractor: (B, N, 3) -> (B, N, ``config.point_channels``).
+
+    ``l0`` = 1x1 conv 3 -> first_channels; ``l1 = [D(l0), l0]``; for every further block,
+    ``l_i = [D(conv1x1(l_{i-1}) -> first_channels), l_{i-1}]``.
+    """
+
+    def __init__(self, config: PCNBVConfig) -> None:
+        super().__init__()
+        c0, bn = config.first_channels, config.batch_norm
+        self.first = _Pointwise(3, c0, bn)
+        self.blocks = nn.ModuleList(
+            DenseEdgeConv(c0, config.growth, config.dense_layers, config.k, bn)
+            for _ in range(config.blocks)
+        )
+        widths = [c0 + i * config.block_out_channels for i in range(1, config.blocks)]
+        self.squeeze = nn.ModuleList(_Pointwise(w, c0, bn) for w in widths)
+
+    def forward(self, points: Tensor) -> Tensor:
+        features = self.first(points)
+        features = torch.cat([self.blocks[0](features), features], dim=-1)
+        for squeeze, block in zip(self.squeeze, self.blocks[1:], strict=True):
+            features = torch.cat([block(squeeze(features)), features], dim=-1)
+        return features
+
+
+class SelfAttention(nn.Module):
+    """SAGAN-style self-attention over points: (B, N, C) -> (B, N, C).
+
+    ``out_i = gamma * sum_j softmax_j(q_i . k_j) v_j + x_i`` with 1x1 convs (with bias) for
+    query, key (C -> ``channels``) and value (C -> C), no 1/sqrt(d) scaling, and a learnable
+    scalar ``gamma`` that starts at 0 so the block starts as the identity.
+    """
+
+    def __init__(self, c_in: int, channels: int) -> None:
+        super().__init__()
+        self.query = nn.Linear(c_in, channels)
+        self.key = nn.Linear(c_in, channels)
+        self.value = nn.Linear(c_in, c_in)
+        self.gamma = nn.Parameter(torch.zeros(()))
+
+    def forward(self, x: Tensor) -> Tensor:
+        attended = F.scaled_dot_product_attention(
+            self.query(x), self.key(x), self.value(x), scale=1.0
+        )
+        return self.gamma * attended + x
+
+
+class PCNBV(nn.Module):
+    """The PC-NBV network (and PCNBV-sph with signature points as input).
+
+    ``forward(points (B, N, 3), view_state (B, V)) -> (B, V)``: the predicted coverage gain of
+    every view; unbounded (linear output). ``view_state`` is 1 (or True) for visited views.
+    The output is invariant to the order of the points (in eval mode; in train mode batch norm
+    statistics are order-invariant too, up to rounding).
+    """
+
+    def __init__(self, config: PCNBVConfig | None = None) -> None:
+        super().__init__()
+        self.config = config if config is not None else PCNBVConfig()
+        cfg = self.config
+        self.features = FeatureExtractor(cfg)
+        self.attention = SelfAttention(cfg.concat_channels, cfg.attention_channels)
+        widths = (cfg.concat_channels, *cfg.conv_channels)
+        self.convs = nn.Sequential(
+            *(
+                _Pointwise(a, b, cfg.batch_norm)
+                for a, b in zip(widths[:-1], widths[1:], strict=True)
+            )
+        )
+        widths = (cfg.conv_channels[-1], *cfg.fc_channels)
+        layers: list[nn.Module] = []
+        for a, b in zip(widths[:-1], widths[1:], strict=True):
+            layers += [nn.Linear(a, b), nn.ReLU()]
+        layers.append(nn.Linear(widths[-1], cfg.n_views))
+        self.head = nn.Sequential(*layers)
+
+    def _check_inputs(self, points: Tensor, view_state: Tensor) -> None:
+        v, k = self.config.n_views, self.config.k
+        if points.ndim != 3 or points.shape[2] != 3:
+            raise ValueError(f"points must have shape (B, N, 3), got {tuple(points.shape)}")
+        if not points.is_floating_point():
+            raise ValueError(f"points must be a float tensor, got {points.dtype}")
+        b, n = points.shape[:2]
+        if view_state.shape != (b, v):
+            raise ValueError(
+                f"view_state must have shape (B, V) = ({b}, {v}), got {tuple(view_state.shape)}"
+            )
+        if n < k:
+            raise ValueError(
+                f"points must hold at least k = {k} points a sample, got shape {tuple(points.shape)}"
+            )
+        if not torch.isfinite(points).all():
+            raise ValueError("points must be finite, got NaN or inf")
+
+    @staticmethod
+    def normalize(points: Tensor) -> Tensor:
+        """Centre every cloud at its centroid and scale it to max radius 1 (a cloud of one
+        repeated point becomes all zeros): (B, N, 3) -> (B, N, 3)."""
+        centred = points - points.mean(dim=1, keepdim=True)
+        radius = centred.norm(dim=-1).amax(dim=1).view(-1, 1, 1)
+        return centred / torch.where(radius > 0, radius, torch.ones_like(radius))
+
+    def forward(self, points: Tensor, view_state: Tensor) -> Tensor:
+        """Predicted gain of every view.
+
+        Args:
+            points: (B, N, 3) float, N >= ``config.k``.
+            view_state: (B, V) bool or float, 1 = visited.
+
+        Returns:
+            (B, V) float, same dtype as ``points``.
+        """
+        self._check_inputs(points, view_state)
+        if self.config.normalize_input:
+            points = self.normalize(points)
+        per_point = self.features(points)
+        n = per_point.shape[1]
+        tiled_global = per_point.amax(dim=1, keepdim=True).expand(-1, n, -1)
+        tiled_state = view_state.to(per_point.dtype).unsqueeze(1).expand(-1, n, -1)
+        x = torch.cat([per_point, tiled_global, tiled_state], dim=-1)
+        x = self.convs(self.attention(x))
+        return self.head(x.amax(dim=1))
+
+
+def masked_argmax(scores: Tensor, view_state: Tensor) -> Tensor:
+    """The best unvisited view of each sample.
+
+    Args:
+        scores: (B, V) float predicted gains (no NaN); ``-inf`` is allowed.
+        view_state: (B, V) bool or 0/1, 1 = visited.
+
+    Returns:
+        (B,) int64 index of the highest-scoring unvisited view (the first one on ties).
+
+    Raises:
+        ValueError: shapes differ, a score is NaN, or a sample has no unvisited view.
+    """
+    if scores.ndim != 2 or scores.shape != view_state.shape:
+        raise ValueError(
+            f"scores and view_state must both have shape (B, V), got {tuple(scores.shape)} "
+            f"and {tuple(view_state.shape)}"
+        )
+    visited = view_state.to(torch.bool)
+    full = visited.all(dim=1)
+    if full.any():
+        raise ValueError(
+            f"no unvisited view left in samples {full.nonzero().flatten().tolist()}; "
+            "view_state is all ones there"
+        )
+    if torch.isnan(scores).any():
+        raise ValueError("scores contain NaN")
+    best = scores.masked_fill(visited, -math.inf).argmax(dim=1)
+    # When every unvisited score is -inf, argmax may land on a visited view: take the first
+    # unvisited one instead.
+    stuck = visited.gather(1, best.unsqueeze(1)).squeeze(1)
+    return torch.where(stuck, (~visited).to(torch.uint8).argmax(dim=1), best)
+
+
+def count_parameters(model: nn.Module) -> int:
+    """Number of trainable scalars (parameters with ``requires_grad``)."""
+    return sum(p.numel() for p in model.parameters() if p.requires_grad)
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file is missing, unreadable, or does not fit the network it should hold."""
+
+
+def _check_plain(value: Any, where: str) -> None:
+    """Raise ``TypeError`` unless ``value`` is built of types that ``torch.load`` with
+    ``weights_only=True`` reads back: dict with str keys, list, tuple, str, int, float, bool,
+    None, tensors."""
+    if isinstance(value, Mapping):
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise TypeError(f"checkpoint extra{where}: keys must be str, got {key!r}")
+            _check_plain(item, f"{where}[{key!r}]")
+    elif isinstance(value, list | tuple):
+        for i, item in enumerate(value):
+            _check_plain(item, f"{where}[{i}]")
+    elif not (value is None or isinstance(value, str | int | float | bool | Tensor)):
+        raise TypeError(
+            f"checkpoint extra{where} is a {type(value).__name__}; allowed: dict, list, tuple, "
+            "str, int, float, bool, None, torch.Tensor (convert numpy values and paths first)"
+        )
+
+
+def save_checkpoint(path: str | os.PathLike[str], model: PCNBV, extra: Mapping[str, Any]) -> None:
+    """Write the weights, the model config and ``extra`` (training config, dataset identity,
+    epoch, metrics, ...) to ``path`` atomically: a temporary file in the same folder, renamed
+    over ``path`` once complete. Creates missing parent folders.
+
+    Raises:
+        TypeError: ``extra`` holds a value :func:`load_checkpoint` could not read back safely.
+    """
+    _check_plain(dict(extra), "")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "format": CHECKPOINT_FORMAT,
+        "version": CHECKPOINT_VERSION,
+        "config": model.config.to_dict(),
+        "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
+        "extra": dict(extra),
+    }
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            torch.save(payload, f)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load_checkpoint(
+    path: str | os.PathLike[str],
+    map_location: str | torch.device = "cpu",
+    n_views: int | None = None,
+) -> tuple[PCNBV, dict[str, Any]]:
+    """Read a checkpoint written by :func:`save_checkpoint`.
+
+    Args:
+        path: the checkpoint file.
+        map_location: device of the returned model.
+        n_views: if given, the number of views the network must have.
+
+    Returns:
+        ``(model, extra)``: the network in eval mode, and the ``extra`` dict it was saved with.
+
+    Raises:
+        CheckpointError: (naming the file) it is missing, not a torch file, not a PCNBV
+            checkpoint, its config is invalid, its weights do not fit its config, or its
+            number of views differs from ``n_views``.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint {path} does not exist")
+    try:
+        payload = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as e:
+        raise CheckpointError(f"checkpoint {path} is not a readable torch file: {e}") from e
+    if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
+        raise CheckpointError(f"checkpoint {path} is not a PCNBV checkpoint (no format tag)")
+    if payload.get("version") != CHECKPOINT_VERSION:
+        raise CheckpointError(
+            f"checkpoint {path} has version {payload.get('version')!r}; "
+            f"this code reads version {CHECKPOINT_VERSION}"
+        )
+    missing = [k for k in ("config", "state_dict", "extra") if k not in payload]
+    if missing:
+        raise CheckpointError(f"checkpoint {path} lacks the keys {missing}")
+    try:
+        config = PCNBVConfig.from_dict(payload["config"])
+    except (TypeError, ValueError) as e:
+        raise CheckpointError(f"checkpoint {path} has an invalid config: {e}") from e
+    if n_views is not None and config.n_views != n_views:
+        raise CheckpointError(
+            f"checkpoint {path} is a network for {config.n_views} views, expected {n_views}"
+        )
+    model = PCNBV(config)
+    try:
+        model.load_state_dict(payload["state_dict"], strict=True)
+    except (RuntimeError, TypeError, AttributeError) as e:
+        raise CheckpointError(f"checkpoint {path} weights do not fit its config: {e}") from e
+    return model.to(map_location).eval(), dict(payload["extra"])

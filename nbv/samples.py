@@ -1,0 +1,309 @@
+"""Training samples: oracle trajectories over a model's views, as PC-NBV's networks learn them.
+
+For each model and each of ``trajectories`` seeded random start views, a trajectory visits
+``steps`` views: the start view, then at each step the unvisited view with the largest true gain of
+the chosen score (the oracle), or with probability ``random_step_prob`` a random unvisited view, so
+that the samples also hold states the oracle would not visit. Before each pick a sample is stored:
+
+* ``points``: the accumulated cloud of the visited views reduced by farthest point sampling to
+  ``n_points`` points,
+* ``view_state``: (V,) bool, the visited views,
+* ``target``: (V,) the gain each view would add to the score (0 for visited views),
+* ``signature``: the spherical-harmonics signature (:func:`nbv.sph.signature`) of the accumulated
+  cloud at ``lmax``,
+* ``value``: the score of the state itself.
+
+Scores: ``coverage`` (from the dataset's per-view coverage bits, i.e. of the full-resolution views)
+and ``vig`` (from the per-view hull vertices, exact). Models whose ground-truth hull has no volume
+are skipped for ``vig`` and listed in ``/skipped``.
+
+File ``samples-shard-SSSSS-of-NNNNN.h5`` beside each dataset shard::
+
+    / (attrs)                 schema_version, viewspace, n_views, n_points, lmax, trajectories,
+                              steps, random_step_prob, seed, dataset (the shard file's name)
+    /models/key, category, split      (M,) strings
+    /skipped                  (K, 3) strings: key, score, reason
+    /<score>/points           (S, n_points, 3) float32
+    /<score>/signature        (S, 4 (lmax + 1)^2, 3) float32, in the cloud's own frame
+    /<score>/view_state       (S, V) bool
+    /<score>/target           (S, V) float32
+    /<score>/value            (S,) float32
+    /<score>/model            (S,) int32, row of /models
+    /<score>/trajectory, step (S,) int16
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import fpsample
+import h5py
+import numpy as np
+from tqdm import tqdm
+
+from nbv.dataset.reader import Dataset, DatasetError, shard_files
+from nbv.dataset.schema import ModelData, fsync_replace, write_strings
+from nbv.dataset.sources import stable_seed
+from nbv.scores import coverage_from_bits, coverage_gains, vig_gains, vig_of_state
+from nbv.sph import signature
+
+SCORES = ("coverage", "vig")
+SCHEMA_VERSION = 1
+
+
+@dataclass(frozen=True)
+class SampleSettings:
+    """How samples are drawn (``samples:`` in ``conf/dataset.yaml``)."""
+
+    trajectories: int = 4
+    steps: int = 10
+    n_points: int = 1024
+    lmax: int = 3
+    random_step_prob: float = 0.0
+    scores: tuple[str, ...] = SCORES
+    viewspace: str = "original"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        bad = [s for s in self.scores if s not in SCORES]
+        if bad:
+            raise ValueError(f"samples.scores: unknown {bad}; allowed: {', '.join(SCORES)}")
+        if not 0.0 <= self.random_step_prob <= 1.0:
+            raise ValueError(f"samples.random_step_prob={self.random_step_prob}: must be in [0, 1]")
+        if self.trajectories < 1 or self.steps < 1 or self.n_points < 1 or self.lmax < 0:
+            raise ValueError(
+                "samples.trajectories, steps and n_points must be >= 1 and lmax >= 0, got "
+                f"{self.trajectories}, {self.steps}, {self.n_points}, {self.lmax}"
+            )
+
+
+def farthest_points(points: np.ndarray, n: int) -> np.ndarray:
+    """Farthest point sampling (fpsample's bucket QuickFPS, started at point 0): (N, 3) -> (n, 3).
+
+    Clouds with fewer than ``n`` points are returned whole, then repeated cyclically to ``n``.
+    """
+    if len(points) <= n:
+        return points[np.arange(n) % len(points)]
+    return points[fpsample.bucket_fps_kdline_sampling(points, n, 7, start_idx=0)]
+
+
+def walk(
+    gains: Callable[[np.ndarray], np.ndarray],
+    n_views: int,
+    start: int,
+    steps: int,
+    rng: np.random.Generator,
+    random_step_prob: float = 0.0,
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """One trajectory: (view_state, gains) before each pick, ``steps`` states in all.
+
+    Args:
+        gains: view_state (V,) bool -> (V,) gain of adding each view (0 for visited ones).
+        n_views: V.
+        start: the first visited view.
+        steps: number of visited views at the last state.
+        rng: generator of the random steps.
+        random_step_prob: probability of a random unvisited view instead of the best one.
+
+    Returns:
+        ``steps`` pairs; state ``i`` has ``i + 1`` visited views.
+    """
+    state = np.zeros(n_views, dtype=bool)
+    state[start] = True
+    out = []
+    for _ in range(steps):
+        g = gains(state)
+        out.append((state.copy(), g))
+        if state.all():
+            break
+        if random_step_prob > 0 and rng.random() < random_step_prob:
+            nxt = int(rng.choice(np.flatnonzero(~state)))
+        else:
+            nxt = int(np.argmax(np.where(state, -np.inf, g)))
+        state[nxt] = True
+    return out
+
+
+def _score_functions(model: ModelData, score: str, viewspace: str):
+    """(gains(state), value(state)) of one score for a model's views."""
+    view = model.views[viewspace]
+    if score == "coverage":
+        n_gt = len(model.gt_points)
+        return (
+            lambda s: coverage_gains(view.coverage, s, n_gt),
+            lambda s: coverage_from_bits(view.coverage, s, n_gt),
+        )
+    hulls = view.view_hulls()
+    volume = model.gt_hull_volume
+    return (lambda s: vig_gains(hulls, s, volume), lambda s: vig_of_state(hulls, s, volume))
+
+
+def model_samples(model: ModelData, score: str, settings: SampleSettings) -> dict[str, np.ndarray]:
+    """All samples of one model for one score (see the module docstring), as arrays."""
+    view = model.views[settings.viewspace]
+    n_views = len(view.poses)
+    rng = np.random.default_rng(stable_seed(settings.seed, f"{model.key}/{score}"))
+    # A trajectory starts where the object is seen (a flat object seen edge-on shows nothing).
+    seen = np.flatnonzero(np.diff(view.offsets) > 0)
+    starts = rng.choice(seen, size=min(settings.trajectories, len(seen)), replace=False)
+    gains, value = _score_functions(model, score, settings.viewspace)
+    rows: dict[str, list] = {k: [] for k in ("points", "signature", "view_state", "target")}
+    rows.update(value=[], trajectory=[], step=[])
+    for t, start in enumerate(starts):
+        for step, (state, g) in enumerate(
+            walk(gains, n_views, int(start), settings.steps, rng, settings.random_step_prob)
+        ):
+            cloud = np.concatenate([view.view_points(v) for v in np.flatnonzero(state)])
+            rows["points"].append(farthest_points(cloud, settings.n_points))
+            rows["signature"].append(signature(cloud, settings.lmax))
+            rows["view_state"].append(state)
+            rows["target"].append(g)
+            rows["value"].append(value(state))
+            rows["trajectory"].append(t)
+            rows["step"].append(step)
+    dtypes = dict(
+        points=np.float32, signature=np.float32, view_state=bool, target=np.float32,
+        value=np.float32, trajectory=np.int16, step=np.int16,
+    )  # fmt: skip
+    return {k: np.asarray(v, dtype=dtypes[k]) for k, v in rows.items()}
+
+
+def samples_path(shard_file: Path) -> Path:
+    """The samples file beside a dataset shard file."""
+    return shard_file.with_name("samples-" + shard_file.name)
+
+
+def write_samples(
+    shard_file: Path, settings: SampleSettings, progress: bool = True
+) -> tuple[Path, list[tuple[str, str, str]]]:
+    """Compute every sample of one dataset shard and write its samples file atomically.
+
+    Returns:
+        The samples file and the (key, score, reason) of skipped model/score pairs.
+    """
+    dataset = Dataset([shard_file])
+    if settings.viewspace not in dataset.viewspaces:
+        raise DatasetError(
+            f"{shard_file}: samples.viewspace={settings.viewspace!r} not in the dataset "
+            f"({sorted(dataset.viewspaces)})"
+        )
+    keys = list(dataset)
+    collected: dict[str, list[dict]] = {s: [] for s in settings.scores}
+    skipped: list[tuple[str, str, str]] = []
+    for index, key in enumerate(tqdm(keys, desc="samples", unit="model", disable=not progress)):
+        model = dataset.model(key, (settings.viewspace,))
+        for score in settings.scores:
+            if score == "vig" and not model.gt_hull_volume > 0:
+                skipped.append((key, score, "ground-truth hull has no volume: VIG undefined"))
+                continue
+            arrays = model_samples(model, score, settings)
+            arrays["model"] = np.full(len(arrays["step"]), index, dtype=np.int32)
+            collected[score].append(arrays)
+    out = samples_path(shard_file)
+    tmp = out.with_name(out.name + ".tmp")
+    with h5py.File(tmp, "w") as handle:
+        attrs = asdict(settings)
+        attrs["scores"] = list(settings.scores)
+        handle.attrs.update(attrs)
+        handle.attrs.update(
+            schema_version=SCHEMA_VERSION,
+            dataset=shard_file.name,
+            n_views=len(dataset.viewspaces[settings.viewspace]),
+        )
+        write_strings(handle, "models/key", keys)
+        write_strings(handle, "models/category", [dataset.index[k][1] for k in keys])
+        write_strings(handle, "models/split", [dataset.index[k][2] for k in keys])
+        write_strings(handle, "skipped", [list(s) for s in skipped], columns=3)
+        for score, parts in collected.items():
+            group = handle.create_group(score)
+            if not parts:
+                continue
+            for name in parts[0]:
+                data = np.concatenate([p[name] for p in parts])
+                group.create_dataset(name, data=data, compression="gzip", shuffle=True)
+    fsync_replace(tmp, out)
+    return out, skipped
+
+
+def samples_up_to_date(shard_file: Path, settings: SampleSettings) -> bool:
+    """True when the samples file beside ``shard_file`` holds this shard's models and settings."""
+    out = samples_path(shard_file)
+    if not out.exists():
+        return False
+    with h5py.File(out, "r") as handle, h5py.File(shard_file, "r") as shard:
+        same_models = list(handle["models/key"].asstr()[()]) == list(shard.get("models", {}))
+        stored = {k: handle.attrs.get(k) for k in asdict(settings)}
+    wanted = asdict(settings)
+    same_settings = all(
+        np.array_equal(np.asarray(stored[k]), np.asarray(v)) for k, v in wanted.items()
+    )
+    return same_models and same_settings
+
+
+@dataclass
+class SampleSet:
+    """The samples of one score over every shard of a dataset, in memory.
+
+    Attributes:
+        points, signature, view_state, target, value, trajectory, step: stacked arrays (S, ...).
+        key, category, split: (S,) per-sample model key, category and split (str arrays).
+        attrs: the samples files' settings.
+    """
+
+    points: np.ndarray
+    signature: np.ndarray
+    view_state: np.ndarray
+    target: np.ndarray
+    value: np.ndarray
+    trajectory: np.ndarray
+    step: np.ndarray
+    key: np.ndarray
+    category: np.ndarray
+    split: np.ndarray
+    attrs: dict = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.step)
+
+    def select(self, mask: np.ndarray) -> SampleSet:
+        """The samples where ``mask`` (S,) is True."""
+        arrays = {k: v[mask] for k, v in vars(self).items() if isinstance(v, np.ndarray)}
+        return SampleSet(**arrays, attrs=self.attrs)
+
+
+def load_samples(path: str | Path, score: str) -> SampleSet:
+    """Read one score's samples from a dataset folder (or one samples file)."""
+    if score not in SCORES:
+        raise ValueError(f"score={score!r}: must be one of {', '.join(SCORES)}")
+    path = Path(path)
+    files = [path] if path.is_file() else [samples_path(f) for f in shard_files(path)]
+    missing = [str(f) for f in files if not f.exists()]
+    if missing:
+        raise DatasetError(f"no samples file {missing[0]}; run `make dataset` (samples stage)")
+    parts: dict[str, list] = {}
+    attrs: dict = {}
+    for file in files:
+        with h5py.File(file, "r") as handle:
+            attrs = attrs or {k: v for k, v in handle.attrs.items()}
+            if score not in handle or "step" not in handle[score]:
+                continue
+            group = handle[score]
+            rows = group["model"][()]
+            for name in (
+                "points",
+                "signature",
+                "view_state",
+                "target",
+                "value",
+                "trajectory",
+                "step",
+            ):
+                parts.setdefault(name, []).append(group[name][()])
+            for name in ("key", "category", "split"):
+                column = handle[f"models/{name}"].asstr()[()]
+                parts.setdefault(name, []).append(np.asarray(column, dtype=str)[rows])
+    if not parts:
+        raise DatasetError(f"{path}: no {score} samples in {len(files)} samples file(s)")
+    return SampleSet(**{k: np.concatenate(v) for k, v in parts.items()}, attrs=attrs)

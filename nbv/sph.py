@@ -1,0 +1,291 @@
+"""Real spherical harmonics, least-squares radius fits, and the spherical signature of a cloud.
+
+A cloud seen from a centre ``c`` (its centroid unless told otherwise) defines a radius function
+``r(theta, phi) = |p - c|`` over the directions of its points. :func:`fit` expands it in real
+spherical harmonics up to degree ``lmax`` (the paper's eq. 8 and 12); :func:`signature` (the
+paper's Algorithm 1) evaluates the expansion on a fixed equiangular grid of ``4 (lmax + 1)^2``
+directions and returns the points ``r(dir) * dir``: a fixed-size cloud for the network.
+
+Conventions (the paper swaps the names latitude/longitude; these are the ones used here):
+
+* ``theta`` is the polar angle (colatitude) in ``[0, pi]``, measured from the **+z axis** of the
+  frame the points are given in; ``phi`` is the azimuth in ``[0, 2 pi)``, from +x towards +y.
+  The unit direction is ``(sin theta cos phi, sin theta sin phi, cos theta)``. The world is Y-up,
+  but the harmonics' pole is z: the pole only decides where the sampling grid is densest (the
+  signature is a set of 3-D points in the cloud's own frame either way).
+* Real, orthonormal harmonics (``integral over the sphere of Y_i Y_j = delta_ij``)::
+
+      Y_l^m = sqrt(2) K_l^m  P_l^m(cos theta)  cos(m phi)       m > 0
+      Y_l^0 =         K_l^0  P_l^0(cos theta)
+      Y_l^m = sqrt(2) K_l^|m| P_l^|m|(cos theta) sin(|m| phi)    m < 0
+      K_l^m = sqrt((2l + 1) / (4 pi) * (l - m)! / (l + m)!)
+
+  with ``P_l^m`` the associated Legendre functions *without* the Condon-Shortley phase
+  ``(-1)^m``. Against the complex harmonics that include it (``scipy.special.sph_harm_y``):
+  ``Y_l^m = sqrt(2) (-1)^m Re Y_l^m,complex`` for ``m > 0`` and
+  ``Y_l^m = sqrt(2) (-1)^m Im Y_l^|m|,complex`` for ``m < 0``.
+* Coefficients are ordered by ``index = l * l + l + m`` (``l = 0..lmax``, ``m = -l..l``), so there
+  are ``(lmax + 1)^2`` of them. Every array of harmonics is ``(..., (lmax + 1)^2)``.
+* Fit (eq. 12): ``c = argmin_c sum_i (r_i - sum_lm c_lm Y_lm(theta_i, phi_i))^2``. The paper's
+  eq. 12-13 square the ``Y``; that is a typo, the model is linear in ``Y``. A sphere of radius
+  ``R`` about the centre gives ``c_00 = R sqrt(4 pi)`` and nothing else.
+* Sampling grid: Driscoll-Healy style equiangular grid with bandwidth ``B = lmax + 1``, shifted by
+  half a step in ``theta`` so that no sample sits on a pole (the variant used by Kostelec and
+  Rockmore's SOFT): ``theta_j = pi (2 j + 1) / (4 B)``, ``phi_k = 2 pi k / (2 B)``,
+  ``j, k = 0 .. 2B - 1``, flattened theta-major (``index = j * 2B + k``): ``4 B^2`` directions,
+  no duplicates.
+
+The harmonics are computed from unit vectors by recurrences on ``cos theta = z`` and
+``sin^m theta e^{i m phi} = (x + i y)^m``: no trigonometric functions in the fast path.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+_INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
+_SQRT2 = np.sqrt(2.0)
+
+#: The normal equations are solved directly when the Gram matrix's condition number is below
+#: this (so the fit loses at most ~1e-8 relative); otherwise a full least-squares solve is used.
+_MAX_GRAM_CONDITION = 1e8
+
+
+def n_coeffs(lmax: int) -> int:
+    """Number of harmonics of degree ``0..lmax``: ``(lmax + 1)^2``."""
+    return (_check_lmax(lmax) + 1) ** 2
+
+
+def sph_index(l: int, m: int) -> int:  # noqa: E741 - l is the standard name of the degree
+    """Position of ``Y_l^m`` in a coefficient vector: ``l * l + l + m``."""
+    if l < 0 or abs(m) > l:
+        raise ValueError(f"need l >= 0 and |m| <= l, got l={l}, m={m}")
+    return l * l + l + m
+
+
+def _check_lmax(lmax: int) -> int:
+    if isinstance(lmax, bool) or not isinstance(lmax, int | np.integer) or lmax < 0:
+        raise ValueError(f"lmax must be an integer >= 0, got {lmax!r}")
+    return int(lmax)
+
+
+def _lmax_of(n: int) -> int:
+    lmax = int(round(np.sqrt(n))) - 1
+    if n == 0 or (lmax + 1) ** 2 != n:
+        raise ValueError(f"a coefficient vector has (lmax + 1)^2 entries, got {n}")
+    return lmax
+
+
+def unit_vectors(theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Unit directions ``(..., 3)`` float64 of polar angles ``theta`` and azimuths ``phi`` (rad)."""
+    theta, phi = np.broadcast_arrays(np.asarray(theta, np.float64), np.asarray(phi, np.float64))
+    st = np.sin(theta)
+    return np.stack([st * np.cos(phi), st * np.sin(phi), np.cos(theta)], axis=-1)
+
+
+def angles(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Polar angle in ``[0, pi]`` and azimuth in ``[0, 2 pi)`` of ``(..., 3)`` non-zero vectors."""
+    d = np.asarray(directions, dtype=np.float64)
+    theta = np.arctan2(np.hypot(d[..., 0], d[..., 1]), d[..., 2])
+    phi = np.mod(np.arctan2(d[..., 1], d[..., 0]), 2.0 * np.pi)
+    return theta, phi
+
+
+def _harmonics_rows(lmax: int, x: np.ndarray, y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Real harmonics of unit vectors, ``((lmax + 1)^2, P)`` float64 (one contiguous row each).
+
+    ``x, y, z`` are contiguous ``(P,)`` float64 components of unit vectors.
+    """
+    n = x.shape[0]
+    out = np.empty(((lmax + 1) ** 2, n))
+    c_prev, s_prev = np.ones(n), np.zeros(n)  # sin^m(theta) cos/sin(m phi) for m = 0
+    q_mm = _INV_SQRT_4PI  # normalised P_m^m(cos t) / sin^m(t): a constant
+    for m in range(lmax + 1):
+        if m > 0:
+            c_m = x * c_prev - y * s_prev
+            s_m = x * s_prev + y * c_prev
+            c_prev, s_prev = c_m, s_m
+            q_mm *= np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        # Normalised Legendre values divided by sin^m, by the stable three-term recurrence in l.
+        q_l2 = None
+        q_l1 = np.full(n, q_mm)
+        for l in range(m, lmax + 1):  # noqa: E741
+            if l == m + 1:
+                q_l = np.sqrt(2.0 * m + 3.0) * z * q_l1
+            elif l > m + 1:
+                a = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
+                b = np.sqrt(((l - 1.0) ** 2 - m * m) / (4.0 * (l - 1.0) ** 2 - 1.0))
+                q_l = a * (z * q_l1 - b * q_l2)
+            else:
+                q_l = q_l1
+            if l > m:
+                q_l2, q_l1 = q_l1, q_l
+            base = l * l + l
+            if m == 0:
+                out[base] = q_l
+            else:
+                np.multiply(q_l, _SQRT2 * c_prev, out=out[base + m])
+                np.multiply(q_l, _SQRT2 * s_prev, out=out[base - m])
+    return out
+
+
+def real_sph_harm_dirs(lmax: int, directions: np.ndarray) -> np.ndarray:
+    """Real harmonics of degree ``0..lmax`` at unit directions.
+
+    Args:
+        lmax: maximum degree, >= 0.
+        directions: ``(P, 3)`` unit vectors (not normalised here).
+
+    Returns:
+        ``(P, (lmax + 1)^2)`` float64, column ``l * l + l + m`` holds ``Y_l^m``.
+    """
+    lmax = _check_lmax(lmax)
+    d = np.asarray(directions, dtype=np.float64)
+    if d.ndim != 2 or d.shape[1] != 3:
+        raise ValueError(f"directions must have shape (P, 3), got {d.shape}")
+    x, y, z = (np.ascontiguousarray(d[:, i]) for i in range(3))
+    return np.ascontiguousarray(_harmonics_rows(lmax, x, y, z).T)
+
+
+def real_sph_harm(lmax: int, theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Real orthonormal harmonics of degree ``0..lmax`` (module conventions).
+
+    Args:
+        lmax: maximum degree, >= 0.
+        theta: polar angles in radians, any shape broadcastable with ``phi``.
+        phi: azimuths in radians.
+
+    Returns:
+        ``(*shape, (lmax + 1)^2)`` float64, last axis ordered by ``l * l + l + m``.
+    """
+    dirs = unit_vectors(theta, phi)
+    shape = dirs.shape[:-1]
+    return real_sph_harm_dirs(lmax, dirs.reshape(-1, 3)).reshape(*shape, -1)
+
+
+def _as_points(points: np.ndarray) -> np.ndarray:
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise ValueError(f"points must have shape (N, 3), got {arr.shape}")
+    if len(arr) == 0:
+        raise ValueError("points is empty: a radius function needs at least one point")
+    if not np.isfinite(arr).all():
+        raise ValueError("points holds non-finite values (nan or inf); only finite points allowed")
+    return arr
+
+
+def _center_of(points: np.ndarray, center: np.ndarray | None) -> np.ndarray:
+    if center is None:
+        return points.mean(axis=0)
+    c = np.asarray(center, dtype=np.float64)
+    if c.shape != (3,) or not np.isfinite(c).all():
+        raise ValueError(f"center must be a finite (3,) vector, got {c!r}")
+    return c
+
+
+def _solve_least_squares(rows: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``argmin_c |rows.T @ c - r|`` for a ``(K, P)`` design given by rows."""
+    gram = rows @ rows.T
+    rhs = rows @ r
+    w = np.linalg.eigvalsh(gram)
+    if w[0] > w[-1] / _MAX_GRAM_CONDITION:
+        return np.linalg.solve(gram, rhs)
+    # Directions that do not pin down every harmonic (a small patch, too few points): the
+    # minimum-norm least-squares solution, without squaring the condition number.
+    return np.linalg.lstsq(rows.T, r, rcond=None)[0]
+
+
+def fit(points: np.ndarray, lmax: int, center: np.ndarray | None = None) -> np.ndarray:
+    """Least-squares harmonic coefficients of a cloud's radius function (the paper's eq. 12).
+
+    Args:
+        points: ``(N, 3)`` cloud, any float dtype.
+        lmax: maximum degree, >= 0.
+        center: ``(3,)`` point the radii and directions are measured from; defaults to the
+            cloud's centroid. Points at the centre have no direction and are left out.
+
+    Returns:
+        ``((lmax + 1)^2,)`` float64 coefficients ``c`` with ``r(theta, phi) ~ sum c_lm Y_lm``,
+        in the cloud's units, ordered by ``l * l + l + m``. When the directions do not determine
+        every coefficient, the minimum-norm least-squares solution.
+    """
+    lmax = _check_lmax(lmax)
+    pts = _as_points(points)
+    offsets = pts - _center_of(pts, center)
+    x, y, z = (np.ascontiguousarray(offsets[:, i]) for i in range(3))
+    r = np.sqrt(x * x + y * y + z * z)
+    keep = r > 0.0
+    if not keep.all():
+        if not keep.any():
+            raise ValueError("every point lies at the centre: the radius function is undefined")
+        x, y, z, r = x[keep], y[keep], z[keep], r[keep]
+    inv_r = 1.0 / r
+    rows = _harmonics_rows(lmax, x * inv_r, y * inv_r, z * inv_r)
+    return _solve_least_squares(rows, r)
+
+
+def evaluate(coeffs: np.ndarray, theta: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Radius ``r(theta, phi) = sum c_lm Y_lm(theta, phi)`` (the paper's eq. 8).
+
+    Args:
+        coeffs: ``((lmax + 1)^2,)`` coefficients from :func:`fit`.
+        theta, phi: angles in radians (module conventions), broadcastable.
+
+    Returns:
+        float64 array of the broadcast shape of ``theta`` and ``phi``.
+    """
+    c = np.asarray(coeffs, dtype=np.float64)
+    if c.ndim != 1:
+        raise ValueError(f"coeffs must be a 1-D vector, got shape {c.shape}")
+    return real_sph_harm(_lmax_of(len(c)), theta, phi) @ c
+
+
+def equiangular_directions(lmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """The signature's sampling grid: ``4 (lmax + 1)^2`` equiangular directions.
+
+    Bandwidth ``B = lmax + 1``; ``theta_j = pi (2 j + 1) / (4 B)`` and ``phi_k = 2 pi k / (2 B)``
+    for ``j, k = 0 .. 2B - 1`` (Driscoll-Healy grid shifted half a step in theta: no pole
+    samples), flattened theta-major, ``index = j * 2B + k``.
+
+    Returns:
+        ``(theta, phi)``, each ``(4 (lmax + 1)^2,)`` float64, radians.
+    """
+    two_b = 2 * (_check_lmax(lmax) + 1)
+    theta = np.pi * (2.0 * np.arange(two_b) + 1.0) / (2.0 * two_b)
+    phi = 2.0 * np.pi * np.arange(two_b) / two_b
+    tt, pp = np.meshgrid(theta, phi, indexing="ij")
+    return tt.ravel(), pp.ravel()
+
+
+def signature_with_centroid(points: np.ndarray, lmax: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Spherical signature (Algorithm 1) and the centroid it is relative to.
+
+    Fits the radius function about the cloud's centroid (:func:`fit`), evaluates it on
+    :func:`equiangular_directions` and returns ``r(dir) * dir``. Where the fit is poor the
+    reconstructed radius may be negative; it is kept as is (the point then lies on the opposite
+    side of the centroid), so the signature is exactly the expansion's values.
+
+    Args:
+        points: ``(N, 3)`` cloud, any float dtype, N >= 1.
+        lmax: maximum degree, >= 0 (the paper uses 3).
+
+    Returns:
+        ``(signature, centroid)``: ``(4 (lmax + 1)^2, 3)`` float32 points in the cloud's own
+        frame (centred at the centroid; add ``centroid`` for world coordinates), rows in the order
+        of :func:`equiangular_directions`; and the ``(3,)`` float64 centroid.
+    """
+    lmax = _check_lmax(lmax)
+    pts = _as_points(points)
+    centroid = pts.mean(axis=0)
+    coeffs = fit(pts, lmax, center=centroid)
+    dirs = unit_vectors(*equiangular_directions(lmax))
+    radius = real_sph_harm_dirs(lmax, dirs) @ coeffs
+    return (radius[:, None] * dirs).astype(np.float32), centroid
+
+
+def signature(points: np.ndarray, lmax: int = 3) -> np.ndarray:
+    """Spherical signature (Algorithm 1): ``(4 (lmax + 1)^2, 3)`` float32 points about the centroid.
+
+    See :func:`signature_with_centroid`.
+    """
+    return signature_with_centroid(points, lmax)[0]

@@ -1,0 +1,92 @@
+"""Shared fixtures. ``slurm_cluster``: a real single-node SLURM, started once per test session."""
+
+import os
+import shutil
+import subprocess
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+SLURM_SCRIPTS = Path(__file__).parent / "slurm"
+
+
+def _in_ci() -> bool:
+    """True when the CI variable is set to anything but an empty string, 0, false or no."""
+    return os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
+
+
+@dataclass(frozen=True)
+class SlurmCluster:
+    """A running cluster of tests/slurm/start.sh: ``conf`` is its slurm.conf, ``dir`` holds its
+    state, spool and logs (slurmctld.log, slurmd.log)."""
+
+    conf: Path
+    dir: Path
+
+    def log_tail(self, lines: int = 30) -> str:
+        """The last ``lines`` lines of both daemons' logs, for failure messages."""
+        parts = []
+        for name in ("slurmctld.log", "slurmd.log"):
+            path = self.dir / name
+            if path.exists():
+                tail = path.read_text(errors="replace").splitlines()[-lines:]
+                parts.append(f"---- {path}\n" + "\n".join(tail))
+        return "\n".join(parts)
+
+    def run(
+        self, *args: str | os.PathLike[str], cwd: Path | None = None, timeout: float = 300
+    ) -> subprocess.CompletedProcess[str]:
+        """Run a command against this cluster (SLURM_CONF set) and return it when it exits 0;
+        otherwise fail the test with its output and the daemons' log tails."""
+        env = {**os.environ, "SLURM_CONF": str(self.conf)}
+        proc = subprocess.run(
+            [str(a) for a in args],
+            cwd=cwd,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
+        if proc.returncode != 0:
+            pytest.fail(
+                f"{' '.join(map(str, args))} exited with {proc.returncode}\n"
+                f"stdout:\n{proc.stdout}\nstderr:\n{proc.stderr}\n{self.log_tail()}",
+                pytrace=False,
+            )
+        return proc
+
+
+@pytest.fixture(scope="session")
+def slurm_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SlurmCluster]:
+    """Start tests/slurm/start.sh in a temporary folder, set SLURM_CONF for the session, and stop
+    the daemons afterwards. Outside CI it skips when SLURM is not installed or the user is not
+    root; otherwise a cluster that does not start fails the tests instead of skipping them."""
+    if not _in_ci() and shutil.which("sbatch") is None:
+        pytest.skip(
+            "SLURM is not installed; enable these tests with `bash tests/slurm/install.sh` "
+            "(root or passwordless sudo)"
+        )
+    if not _in_ci() and os.geteuid() != 0:
+        pytest.skip("a private SLURM test cluster needs root (slurmd starts jobs as their owner)")
+    folder = tmp_path_factory.mktemp("slurm")
+    cluster = SlurmCluster(conf=folder / "slurm.conf", dir=folder)
+    start = subprocess.run(
+        ["bash", str(SLURM_SCRIPTS / "start.sh"), str(folder)],
+        capture_output=True,
+        text=True,
+        timeout=180,
+    )
+    if start.returncode != 0:
+        subprocess.run(["bash", str(SLURM_SCRIPTS / "stop.sh"), str(folder)], timeout=120)
+        pytest.fail(
+            f"tests/slurm/start.sh {folder} failed:\n{start.stderr}\n{cluster.log_tail()}",
+            pytrace=False,
+        )
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("SLURM_CONF", str(cluster.conf))
+        try:
+            yield cluster
+        finally:
+            subprocess.run(["bash", str(SLURM_SCRIPTS / "stop.sh"), str(folder)], timeout=120)

@@ -1,0 +1,225 @@
+"""Dataset generation: layout, scores, sharding, resumption after a kill, failures."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import trimesh
+from datagen import SMALL_CAMERA, small_settings
+
+import nbv.dataset
+from nbv.camera import backproject, look_at, viewspace_poses
+from nbv.dataset.generate import ConfigError, exit_status, generate, view_data
+from nbv.dataset.show import main as show_main
+from nbv.render import RenderError, render_raycast
+from nbv.viewspace import original_viewspace
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def brute_covered(points: np.ndarray, gt: np.ndarray, eps: float) -> np.ndarray:
+    d2 = ((gt[:, None, :] - points[None, :, :]) ** 2).sum(-1)
+    return d2.min(axis=1) < eps**2
+
+
+def test_view_data_scores_full_resolution_then_subsamples():
+    mesh = trimesh.creation.icosphere(2, 0.4)
+    poses = viewspace_poses(original_viewspace()[:3])
+    depth = render_raycast(mesh.vertices, mesh.faces, poses, SMALL_CAMERA)
+    rng = np.random.default_rng(0)
+    gt = trimesh.sample.sample_surface(mesh, 300, seed=1)[0]
+    data = view_data(depth, poses, SMALL_CAMERA, gt, 0.03, 40, rng, keep_depth=True)
+    assert data.offsets.tolist() == [0, 40, 80, 120]
+    assert data.points.dtype == np.float32 and data.depth.dtype == np.float16
+    for v in range(3):
+        full = backproject(depth[v], SMALL_CAMERA, poses[v])
+        assert len(full) > 40
+        expected = np.packbits(brute_covered(full, gt, 0.03))
+        np.testing.assert_array_equal(data.coverage[v], expected)
+        # Kept points are a subset of the full view.
+        kept = data.view_points(v).astype(np.float64)
+        assert np.abs(kept[:, None] - full[None]).sum(-1).min(axis=1).max() < 1e-6
+
+
+def test_view_data_keeps_an_empty_view_but_refuses_an_empty_render():
+    depth = np.full((2, 48, 64), np.inf, np.float32)
+    poses = np.stack([look_at(np.array([0.0, 0, 1])), look_at(np.array([0.0, 1, 0]))])
+    gt = np.zeros((5, 3))
+    with pytest.raises(RenderError, match="empty render"):
+        view_data(depth, poses, SMALL_CAMERA, gt, 0.01, 10, np.random.default_rng(0))
+    depth[1, 10:20, 10:20] = 1.0
+    data = view_data(depth, poses, SMALL_CAMERA, gt, 0.01, 10, np.random.default_rng(0))
+    assert data.offsets.tolist() == [0, 0, 10] and data.hull_offsets[1] == 0
+    assert not data.coverage[0].any()
+
+
+def test_generate_writes_the_design_layout(tmp_path):
+    settings = small_settings(tmp_path)
+    summary = generate(settings)
+    assert summary.produced == 3 and summary.total == 4
+    assert len(summary.failures) == 1
+    assert "broken.obj" in summary.failures[0][1]
+    assert exit_status(summary) == 0
+    shard = tmp_path / "out" / "shard-00000-of-00001.h5"
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [shard.name]
+    with h5py.File(shard, "r") as f:
+        for name in ("schema_version", "eps", "n_gt", "width", "height", "fx", "fy", "cx", "cy"):
+            assert name in f.attrs
+        assert f.attrs["width"] == 64 and f.attrs["eps"] == pytest.approx(0.00707)
+        np.testing.assert_array_equal(f["viewspaces/original"][()], original_viewspace())
+        assert f["viewspaces/permuted"].shape == (33, 3)
+        assert f["failures"].shape == (1, 2)
+        assert len(f["models"]) == 3
+        for model in f["models"].values():
+            assert set(model.attrs) >= {"category", "source", "source_path", "center", "scale"}
+            assert model["gt_points"].shape == (1000, 3) and model["gt_points"].dtype == np.float32
+            gt_radius = np.linalg.norm(model["gt_points"][()], axis=1).max()
+            assert gt_radius <= 0.5 + 1e-6
+            for vs in ("original", "permuted"):
+                g = model[f"views/{vs}"]
+                assert g["poses"].shape == (33, 4, 4)
+                assert g["offsets"].shape == (34,) and g["offsets"][-1] == len(g["points"])
+                assert g["coverage"].shape == (33, 125) and g["coverage"].dtype == np.uint8
+                assert np.all(np.diff(g["offsets"][()]) == 50)
+                assert g["points"].attrs["points_per_view"] == 50
+            assert model.attrs["split"] == "test"
+    # The reader sees the same models; the parts of the two-part mesh were normalised together.
+    ds = nbv.dataset.open(tmp_path / "out")
+    assert len(ds) == 3 and ds.failures[0][0] == summary.failures[0][0]
+    model = ds[ds.keys()[0]]
+    assert model.views["original"].view_points(0).shape == (50, 3)
+    assert ds.intrinsics == SMALL_CAMERA
+
+
+def test_coverage_bits_match_merged_cloud(tmp_path):
+    generate(small_settings(tmp_path, points_per_view=0))
+    ds = nbv.dataset.open(tmp_path / "out")
+    model = ds[ds.keys()[0]]
+    view = model.views["original"]
+    bits = np.unpackbits(view.coverage, axis=1)[:, : len(model.gt_points)].astype(bool)
+    state = [0, 9, 20]
+    merged = np.concatenate([view.view_points(v) for v in state]).astype(np.float64)
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(merged).query(model.gt_points.astype(np.float64))
+    np.testing.assert_array_equal(bits[state].any(axis=0), dist < 0.00707)
+
+
+def test_shards_together_equal_one_run(tmp_path):
+    one = small_settings(tmp_path / "a")
+    generate(one)
+    for shard in range(2):
+        generate(small_settings(tmp_path / "a", out_dir=tmp_path / "b", num_shards=2, shard=shard))
+    a, b = nbv.dataset.open(tmp_path / "a" / "out"), nbv.dataset.open(tmp_path / "b")
+    assert len(b.files) == 2 and sorted(a) == sorted(b)
+    for key in a:
+        ma, mb = a[key], b[key]
+        np.testing.assert_array_equal(ma.gt_points, mb.gt_points)
+        for vs in ma.views:
+            np.testing.assert_array_equal(ma.views[vs].points, mb.views[vs].points)
+            np.testing.assert_array_equal(ma.views[vs].coverage, mb.views[vs].coverage)
+
+
+def test_rerun_skips_done_models_and_refuses_other_settings(tmp_path):
+    generate(small_settings(tmp_path))
+    again = generate(small_settings(tmp_path))
+    assert again.skipped == 3 and again.produced == 0 and len(again.failures) == 1
+    with pytest.raises(ConfigError, match="other settings"):
+        generate(small_settings(tmp_path, eps=0.01))
+
+
+def test_nothing_produced_is_an_error_status(tmp_path):
+    folder = tmp_path / "bad"
+    folder.mkdir()
+    (folder / "a.obj").write_text("garbage\n")
+    (folder / "b.ply").write_bytes(b"\x00\x01 not a ply")
+    summary = generate(small_settings(tmp_path, root=str(folder)))
+    assert summary.produced == 0 and len(summary.failures) == 2
+    assert exit_status(summary) == 1
+
+
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (dict(shard=2, num_shards=2), "shard"),
+        (dict(backend="povray"), "renderer.backend"),
+        (dict(eps=0.0), "eps"),
+    ],
+)
+def test_bad_settings_name_the_key(tmp_path, bad, message):
+    with pytest.raises(ConfigError, match=message):
+        small_settings(tmp_path, **bad)
+
+
+def test_show_writes_a_picture(tmp_path):
+    generate(small_settings(tmp_path, keep_depth=True))
+    out = tmp_path / "pic.png"
+    key = nbv.dataset.open(tmp_path / "out").keys()[0]
+    show_main([str(tmp_path / "out"), key, "--out", str(out)])
+    assert out.stat().st_size > 10_000
+
+
+def _cli(tmp_path: Path, out: Path, backend: str) -> list[str]:
+    return [
+        sys.executable,
+        "-m",
+        "nbv.dataset",
+        f"out_dir={out}",
+        "synthetic.counts={train: 1, valid: 0, test: 0, unseen: 0}",
+        "limit=3",
+        "camera.width=48",
+        "camera.height=36",
+        "camera.focal=36",
+        "n_gt=2048",
+        "points_per_view=64",
+        f"renderer.backend={backend}",
+        "renderer.chunk=2",
+        "progress=false",
+        f"hydra.run.dir={tmp_path / 'hydra'}",
+    ]
+
+
+def _arrays(folder: Path) -> dict[str, np.ndarray]:
+    arrays = {}
+    with h5py.File(folder / "shard-00000-of-00001.h5", "r") as f:
+        f.visititems(
+            lambda name, obj: (
+                arrays.__setitem__(name, obj[()]) if isinstance(obj, h5py.Dataset) else None
+            )
+        )
+    return arrays
+
+
+@pytest.mark.blender
+def test_kill_nine_then_resume_gives_the_same_arrays(tmp_path):
+    """A real `python -m nbv.dataset` with Blender, killed with SIGKILL mid-run, then rerun."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    killed = tmp_path / "killed"
+    proc = subprocess.Popen(
+        _cli(tmp_path, killed, "blender"), cwd=ROOT, env=env, start_new_session=True
+    )
+    parts = killed / ".parts-shard-00000-of-00001"
+    deadline = time.time() + 300
+    while time.time() < deadline and not list(parts.glob("*.h5")):
+        assert proc.poll() is None, "generation ended before it could be interrupted"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)  # the renderer child dies too, as with kill -9 on a tty
+    proc.wait()
+    assert not (killed / "shard-00000-of-00001.h5").exists()
+    subprocess.run(_cli(tmp_path, killed, "blender"), cwd=ROOT, env=env, check=True)
+    clean = tmp_path / "clean"
+    subprocess.run(_cli(tmp_path, clean, "blender"), cwd=ROOT, env=env, check=True)
+    a, b = _arrays(killed), _arrays(clean)
+    assert sorted(a) == sorted(b)
+    assert len([k for k in a if k.endswith("gt_points")]) == 3
+    for name in a:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    assert not any(p.name.startswith(".parts") for p in killed.iterdir())
