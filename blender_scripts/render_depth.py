@@ -336,7 +336,7 @@ def main(argv: list[str]) -> int:
     try:
         spec = load_job(args.job)
         scene, camera, material = configure_scene(spec)
-    except Exception as exc:  # noqa: BLE001 - reported to the parent, which fails every key
+    except Exception as exc:  # reported to the parent, which fails every key
         print(f"NBV-FATAL {_one_line(exc)}", file=proto, flush=True)
         return 2
     tmpdir = tempfile.mkdtemp(prefix="nbv-exr-", dir=os.path.dirname(os.path.abspath(args.job)))
@@ -345,7 +345,7 @@ def main(argv: list[str]) -> int:
         for job in spec["jobs"]:
             try:
                 render_job(scene, camera, material, job, exr_path)
-            except Exception as exc:  # noqa: BLE001 - one bad mesh must not stop the shard
+            except Exception as exc:  # one bad mesh must not stop the shard
                 print(f"NBV-FAIL {job['key']} {_one_line(exc)}", file=proto, flush=True)
             else:
                 print(f"NBV-DONE {job['key']}", file=proto, flush=True)

@@ -146,27 +146,31 @@ class _Pointwise(nn.Module):
         self.norm = nn.BatchNorm1d(c_out) if batch_norm else None
         self.relu = relu
 
-    def forward(self, x: Tensor) -> Tensor:
-        y = self.linear(x)
+    def activate(self, y: Tensor) -> Tensor:
+        """Batch norm and ReLU of a pre-activation ``y`` (..., C_out); may reuse its memory."""
         if self.norm is not None:
             y = self.norm(y.reshape(-1, y.shape[-1])).reshape(y.shape)
-        return F.relu(y) if self.relu else y
+        return F.relu(y, inplace=True) if self.relu else y
+
+    def forward(self, x: Tensor) -> Tensor:
+        return self.activate(self.linear(x))
 
 
 def knn_indices(x: Tensor, k: int) -> Tensor:
     """Indices of the ``k`` nearest neighbours of every point in feature space, the point itself
-    always first (its distance is forced to ``-inf``, so rounding cannot push it out).
+    always included (its distance is forced to ``-inf``, so rounding cannot push it out).
 
     Args:
         x: (B, N, C) float features; ``k <= N``.
         k: neighbours per point, self included.
 
     Returns:
-        (B, N, k) int64 indices into the N axis; not differentiable.
+        (B, N, k) int64 indices into the N axis, in no particular order; not differentiable.
     """
     with torch.no_grad():
-        sq = (x * x).sum(-1)
-        dist = sq.unsqueeze(2) + sq.unsqueeze(1) - 2.0 * (x @ x.transpose(1, 2))
+        # |x_i - x_j|^2 minus the |x_i|^2 term, which is the same along a row, so ranks agree.
+        sq = (x * x).sum(-1).unsqueeze(1)
+        dist = torch.baddbmm(sq, x, x.transpose(1, 2), alpha=-2.0)
         dist.diagonal(dim1=1, dim2=2).fill_(-math.inf)
         return dist.topk(k, dim=-1, largest=False, sorted=False).indices
 
@@ -179,12 +183,17 @@ def gather_neighbours(x: Tensor, idx: Tensor) -> Tensor:
 
 
 class DenseEdgeConv(nn.Module):
-    """A dense EdgeConv block (PU-GAN style): (B, N, C) -> (B, N, dense_layers * growth + C).
+    """A dense EdgeConv block (PU-GAN style): (B, N, C) -> (B, N, layers * growth + C).
 
     Neighbours are the ``k`` nearest in the block's input feature space, the point itself
-    included. Edge feature ``e_ij = [x_j - x_i, x_i]``; layer 1 maps it to ``growth`` channels
-    and appends ``x_i``; every further layer maps everything so far to ``growth`` more channels
-    and prepends them; the block ends with a max over the neighbours.
+    included. With the edge feature ``e_ij = [x_j - x_i, x_i]`` (2C channels):
+    ``y1 = [f1(e_ij), x_i]``, ``y_l = [f_l(y_{l-1}), y_{l-1}]`` for the further layers, each
+    ``f`` a 1x1 conv to ``growth`` channels (+ batch norm) + ReLU; the output is the max of the
+    last ``y`` over the neighbours: ``[h_L, ..., h_1, x_i]``.
+
+    The forward pass computes exactly this, but never builds the tiled ``x_i`` (B, N, k, C):
+    a conv of a concatenation is the sum of convs of its parts, and the parts that depend on
+    ``i`` only are computed once a point instead of once an edge.
     """
 
     def __init__(self, c_in: int, growth: int, layers: int, k: int, batch_norm: bool) -> None:
@@ -194,13 +203,20 @@ class DenseEdgeConv(nn.Module):
         self.layers = nn.ModuleList(_Pointwise(w, growth, batch_norm) for w in widths)
 
     def forward(self, x: Tensor) -> Tensor:
+        c = x.shape[-1]
         idx = knn_indices(x, self.k)
-        centre = x.unsqueeze(2).expand(-1, -1, self.k, -1)
-        y = torch.cat([gather_neighbours(x, idx) - centre, centre], dim=-1)
-        y = torch.cat([self.layers[0](y), centre], dim=-1)
+        first = self.layers[0].linear
+        w_nb, w_centre = first.weight[:, :c], first.weight[:, c:]
+        # W [x_j - x_i; x_i] = W_nb x_j + (W_centre - W_nb) x_i
+        pre = gather_neighbours(x @ w_nb.T, idx)
+        pre = pre + F.linear(x, w_centre - w_nb, first.bias).unsqueeze(2)
+        hs = [self.layers[0].activate(pre)]
         for layer in self.layers[1:]:
-            y = torch.cat([layer(y), y], dim=-1)
-        return y.amax(dim=2)
+            w = layer.linear.weight
+            edges = hs[0] if len(hs) == 1 else torch.cat(hs[::-1], dim=-1)
+            pre = edges @ w[:, :-c].T + F.linear(x, w[:, -c:], layer.linear.bias).unsqueeze(2)
+            hs.append(layer.activate(pre))
+        return torch.cat([h.amax(dim=2) for h in reversed(hs)] + [x], dim=-1)
 
 
 class FeatureExtractor(nn.Module):
@@ -293,7 +309,8 @@ class PCNBV(nn.Module):
             )
         if n < k:
             raise ValueError(
-                f"points must hold at least k = {k} points a sample, got shape {tuple(points.shape)}"
+                f"points must hold at least k = {k} points a sample, "
+                f"got shape {tuple(points.shape)}"
             )
         if not torch.isfinite(points).all():
             raise ValueError("points must be finite, got NaN or inf")

@@ -185,9 +185,9 @@ def _principal_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     centroid = points.mean(axis=0)
     centred = points - centroid
     _, sv, vt = np.linalg.svd(centred, full_matrices=False)
-    if sv[0] == 0.0:
-        return centroid, vt, 0
-    rank = int(np.count_nonzero(sv > _RANK_RTOL * sv[0]))
+    # Rounding in the centroid leaves spread of order eps * |points| even for identical points.
+    noise = 64.0 * np.finfo(np.float64).eps * np.sqrt(len(points)) * np.abs(points).max()
+    rank = int(np.count_nonzero(sv > max(_RANK_RTOL * sv[0], noise)))
     return centroid, vt, rank
 
 

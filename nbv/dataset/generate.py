@@ -329,6 +329,9 @@ def generate(settings: Settings) -> Summary:
     all_poses = np.concatenate(list(poses.values()))
     root_attrs = _root_attrs(settings)
 
+    render_options: dict = {"threads": settings.threads}
+    if settings.backend == "blender":
+        render_options.update(blender=settings.blender, device=settings.device)
     done, old_failures = _completed_keys(shard_file, parts_dir)
     summary = Summary(shard_file, total=len(mine), skipped=sum(m.key in done for m in mine))
     todo = [m for m in mine if m.key not in done]
@@ -350,13 +353,7 @@ def generate(settings: Settings) -> Summary:
                     summary.failures.append((model.key, str(err)))
                     bar.update()
             results = render(
-                jobs,
-                settings.intrinsics,
-                backend=settings.backend,
-                workdir=Path(workdir),
-                blender=settings.blender,
-                threads=settings.threads,
-                device=settings.device,
+                jobs, settings.intrinsics, settings.backend, Path(workdir), **render_options
             )
             for key, depth in results:
                 try:

@@ -10,9 +10,12 @@
 # SLURM_TEST_START_TIMEOUT (seconds, default 60) bounds the wait for the node to become idle.
 # The node gets the machine's CPU count (nproc) and memory (free -m). Every start is a fresh cluster:
 # the old state and spool are removed (the old logs are kept as *.log.1).
-# Needs root (slurmd starts jobs as their owner) and the packages of tests/slurm/install.sh.
+# Needs root or passwordless sudo (slurmd starts jobs as their owner) and the packages of
+# tests/slurm/install.sh.
 # Prints only the export line on stdout; everything else goes to stderr.
 set -euo pipefail
+# The daemons live in sbin, which is not on a normal user's PATH on Debian.
+PATH="$PATH:/usr/sbin:/sbin"
 
 die() {
   echo "tests/slurm/start.sh: $*" >&2
@@ -23,19 +26,35 @@ die() {
 for exe in munged munge slurmctld slurmd sinfo scontrol; do
   command -v "$exe" >/dev/null 2>&1 || die "'$exe' not found; install SLURM with: bash tests/slurm/install.sh"
 done
-[ "$(id -u)" -eq 0 ] || die "must run as root: slurmd starts every job as the user who submitted it"
-
 mkdir -p "$1"
 dir="$(cd "$1" && pwd)"
+# slurmd starts every job as the user who submitted it, so the daemons run as root.
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then
+    exec sudo -n env "SUDO_OWNER=$(id -u):$(id -g)" \
+      ${SLURM_TEST_CTLD_PORT:+"SLURM_TEST_CTLD_PORT=$SLURM_TEST_CTLD_PORT"} \
+      ${SLURM_TEST_SLURMD_PORT:+"SLURM_TEST_SLURMD_PORT=$SLURM_TEST_SLURMD_PORT"} \
+      ${SLURM_TEST_START_TIMEOUT:+"SLURM_TEST_START_TIMEOUT=$SLURM_TEST_START_TIMEOUT"} \
+      bash "$0" "$dir"
+  fi
+  die "needs root or passwordless sudo: slurmd starts every job as the user who submitted it"
+fi
+case "$dir" in
+  *[[:space:]]*) die "'$dir' contains white space, which slurm.conf cannot hold; pick another folder" ;;
+esac
 conf="$dir/slurm.conf"
 node="$(hostname -s 2>/dev/null || hostname)"
+# slurmstepd listens on a unix socket <dir>/spool/<node>_<job>.<step>; such paths hold 107 bytes.
+[ $((${#dir} + ${#node} + 29)) -le 107 ] \
+  || die "'$dir' is too long for slurmstepd's sockets; use a shorter folder"
 timeout_s="${SLURM_TEST_START_TIMEOUT:-60}"
 
 alive() { # alive <pidfile> <command name>: the pid file names a running process of that command
   local pid
   [ -s "$1" ] || return 1
   pid="$(cat "$1")"
-  [ -r "/proc/$pid/comm" ] && [ "$(cat "/proc/$pid/comm")" = "$2" ]
+  [ -r "/proc/$pid/comm" ] && [ "$(cat "/proc/$pid/comm")" = "$2" ] \
+    && [ "$(awk '{print $3}' "/proc/$pid/stat" 2>/dev/null)" != Z ]
 }
 
 log_tail() {
@@ -54,6 +73,9 @@ if alive "$dir/slurmctld.pid" slurmctld && alive "$dir/slurmd.pid" slurmd \
   echo "export SLURM_CONF=$conf"
   exit 0
 fi
+# One start at a time per machine, so two test sessions never pick the same free ports.
+exec 9>"${TMPDIR:-/tmp}/nbv-slurm-test-start.lock"
+flock 9
 # Half-started or stale: clear it away before starting fresh.
 bash "$(dirname "$0")/stop.sh" "$dir"
 
@@ -85,7 +107,7 @@ else
   slurmd_port=$((ctld_port + 1))
 fi
 
-cpus="$(nproc)"
+cpus="$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)" # nproc obeys both; SLURM must not
 mem_mb="$(free -m | awk '/^Mem:/ {print $2}')"
 rm -rf "$dir/state" "$dir/spool"
 mkdir -p "$dir/state" "$dir/spool"
@@ -114,6 +136,8 @@ AccountingStorageType=accounting_storage/none
 SelectType=select/cons_tres
 SelectTypeParameters=CR_CPU
 ReturnToService=2
+# Reject at submission a job that could never run here, instead of queueing it forever.
+EnforcePartLimits=ALL
 # sbatch --wait polls every 2 s only while MinJobAge/2 <= 2 s; the default (300) stretches its
 # polls to 2, 8, 32 s, so a 3 s job would return after 10 s. Finished jobs are forgotten sooner.
 MinJobAge=5
@@ -149,4 +173,6 @@ while [ "$SECONDS" -lt "$deadline" ]; do
 done
 [ "$state" = idle ] \
   || fail "node '$node' not idle after ${timeout_s}s (state: '${state:-no answer}'); config $conf"
+# When started through sudo, leave the folder to its owner (pytest deletes old temporary folders).
+[ -z "${SUDO_OWNER:-}" ] || chown -R "$SUDO_OWNER" "$dir"
 echo "export SLURM_CONF=$conf"

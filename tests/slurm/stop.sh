@@ -8,6 +8,13 @@ set -euo pipefail
 [ $# -eq 1 ] || { echo "usage: stop.sh <dir>" >&2; exit 1; }
 dir="$1"
 timeout_s="${SLURM_TEST_STOP_TIMEOUT:-20}"
+# start.sh runs the daemons as root (through sudo when needed), so stopping them needs it too.
+if [ "$(id -u)" -ne 0 ] && ls "$dir"/slurmctld.pid "$dir"/slurmd.pid >/dev/null 2>&1; then
+  if command -v sudo >/dev/null 2>&1 && sudo -n true 2>/dev/null; then
+    exec sudo -n env ${SLURM_TEST_STOP_TIMEOUT:+"SLURM_TEST_STOP_TIMEOUT=$SLURM_TEST_STOP_TIMEOUT"} \
+      bash "$0" "$dir"
+  fi
+fi
 
 pid_of() { # pid_of <pidfile> <command name>: the pid, if the file names a running process of it
   local pid
@@ -22,9 +29,11 @@ running() { # running <pid>: the process exists and is not a zombie waiting to b
 
 # Jobs left by a failed test would otherwise outlive slurmd as orphaned slurmstepd processes.
 if pid_of "$dir/slurmctld.pid" slurmctld >/dev/null && [ -f "$dir/slurm.conf" ]; then
-  SLURM_CONF="$dir/slurm.conf" timeout 10 scancel --user="$(id -un)" >/dev/null 2>&1 || true
   for _ in $(seq 20); do
-    [ -z "$(SLURM_CONF="$dir/slurm.conf" timeout 5 squeue -h -o %i 2>/dev/null)" ] && break
+    jobs="$(SLURM_CONF="$dir/slurm.conf" timeout 5 squeue -h -o %A 2>/dev/null | sort -u)" || break
+    [ -n "$jobs" ] || break
+    # shellcheck disable=SC2086 # one job id per word
+    SLURM_CONF="$dir/slurm.conf" timeout 10 scancel $jobs >/dev/null 2>&1 || true
     sleep 0.5
   done
 fi

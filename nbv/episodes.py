@@ -1,0 +1,132 @@
+"""Reconstruction episodes: from a start view, a policy picks views one after another.
+
+An episode runs on one model of a dataset and one of its viewspaces. After each captured view the
+coverage (from the per-view coverage bits, i.e. the full-resolution views) and the VIG (from the
+per-view hull vertices) of the views so far are recorded. The protocol of PC-NBV's follow-up work:
+start views 1, 3, 7, 10, 15, 24, 27, 30, then 9 more views (10 in all), visited views masked.
+
+AUC (PC-NBV's definition) of a 10-view coverage curve: ``(cov_1 + ... + cov_9 + 0.5 cov_10) / 10``.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from nbv.dataset.schema import ModelData
+from nbv.scores import coverage_from_bits, vig_of_state
+
+#: The start views of the evaluation protocol (indices into the original viewspace).
+DEFAULT_START_VIEWS = (1, 3, 7, 10, 15, 24, 27, 30)
+#: Views in an episode, the start view included.
+EPISODE_VIEWS = 10
+
+
+@dataclass
+class EpisodeState:
+    """What a policy may look at when it picks the next view.
+
+    Attributes:
+        model: the model's dataset record (a policy other than the oracle should read only the
+            captured views' points).
+        viewspace: name of the viewspace in ``model.views``.
+        view_state: (V,) bool, the views captured so far.
+        order: the captured views in order.
+    """
+
+    model: ModelData
+    viewspace: str
+    view_state: np.ndarray
+    order: list[int]
+
+    def cloud(self) -> np.ndarray:
+        """(N, 3) float32: the accumulated cloud of the captured views (stored points)."""
+        view = self.model.views[self.viewspace]
+        return np.concatenate([view.view_points(v) for v in self.order])
+
+
+#: A policy: state -> the next view (an unvisited index), or a list of views to take in order.
+Policy = Callable[[EpisodeState], int | list[int]]
+
+
+@dataclass
+class Episode:
+    """The outcome of one episode.
+
+    Attributes:
+        views: the captured views in order (start view first).
+        coverage: (len(views),) coverage after each view.
+        vig: (len(views),) VIG after each view (NaN when the ground truth has no hull volume).
+        times: seconds the policy spent at each decision.
+    """
+
+    views: list[int]
+    coverage: np.ndarray
+    vig: np.ndarray
+    times: list[float] = field(default_factory=list)
+
+    @property
+    def auc(self) -> float:
+        """AUC of the coverage curve (PC-NBV's definition)."""
+        return auc(self.coverage)
+
+
+def auc(curve: np.ndarray) -> float:
+    """PC-NBV's area under a coverage curve: ``(c_1 + ... + c_{n-1} + 0.5 c_n) / n``."""
+    curve = np.asarray(curve, dtype=np.float64)
+    if curve.ndim != 1 or len(curve) == 0:
+        raise ValueError(f"a curve is a non-empty 1-D array, got shape {curve.shape}")
+    return float((curve[:-1].sum() + 0.5 * curve[-1]) / len(curve))
+
+
+def curves(model: ModelData, viewspace: str, views: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Coverage and VIG after each view of ``views`` (in order): two (len(views),) arrays."""
+    view = model.views[viewspace]
+    n_gt = len(model.gt_points)
+    hulls = view.view_hulls() if model.gt_hull_volume > 0 else None
+    state = np.zeros(len(view.poses), dtype=bool)
+    cov, vig = [], []
+    for v in views:
+        state[v] = True
+        cov.append(coverage_from_bits(view.coverage, state, n_gt))
+        vig.append(vig_of_state(hulls, state, model.gt_hull_volume) if hulls else np.nan)
+    return np.array(cov), np.array(vig)
+
+
+def run_episode(
+    model: ModelData,
+    viewspace: str,
+    start: int,
+    policy: Policy,
+    n_views: int = EPISODE_VIEWS,
+) -> Episode:
+    """Run ``policy`` from ``start`` until ``n_views`` views are captured.
+
+    A policy returns one view, or a list of views (a one-shot planner), which are taken in order
+    until the episode is full; a visited or out-of-range view is an error of the policy.
+    """
+    n_candidates = len(model.views[viewspace].poses)
+    if not 0 <= start < n_candidates:
+        raise ValueError(f"start view {start} is outside 0..{n_candidates - 1}")
+    state = EpisodeState(model, viewspace, np.zeros(n_candidates, dtype=bool), [start])
+    state.view_state[start] = True
+    times: list[float] = []
+    queue: list[int] = []
+    while len(state.order) < min(n_views, n_candidates):
+        if not queue:
+            t0 = time.perf_counter()
+            choice = policy(state)
+            times.append(time.perf_counter() - t0)
+            queue = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
+            if not queue:
+                raise ValueError("the policy returned no view")
+        v = queue.pop(0)
+        if not 0 <= v < n_candidates or state.view_state[v]:
+            raise ValueError(f"the policy chose view {v}, visited or outside 0..{n_candidates - 1}")
+        state.view_state[v] = True
+        state.order.append(v)
+    cov, vig = curves(model, viewspace, state.order)
+    return Episode(state.order, cov, vig, times)

@@ -1,0 +1,329 @@
+"""Depth renderers: ray casting against brute force and the analytic sphere; Blender against it."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+
+from nbv.camera import Intrinsics, look_at, opencv_to_blender, pixel_rays, valid_depth
+from nbv.render import (
+    BLENDER_SCRIPT,
+    RenderError,
+    RenderJob,
+    render,
+    render_blender,
+    render_raycast,
+)
+
+CAMERA = Intrinsics.centred(80, 60, 60.0)
+#: Off-centre principal point and non-square pixels.
+ODD_CAMERA = Intrinsics(80, 60, 60.0, 66.0, 45.25, 26.5)
+SPHERE_RADIUS = 0.4
+
+
+def _poses(*eyes) -> np.ndarray:
+    return np.stack([look_at(np.asarray(e, dtype=float)) for e in eyes])
+
+
+#: Pole view (0, 1, 0), two oblique views and one from below the equator, all at distance 1.
+POSES = _poses([0, 1, 0], [0, 0, 1], [0.55, 0.5, 0.67], [-0.8, -0.45, 0.4])
+
+
+def _sphere() -> trimesh.Trimesh:
+    return trimesh.creation.icosphere(subdivisions=5, radius=SPHERE_RADIUS)
+
+
+def _box_at_x() -> trimesh.Trimesh:
+    box = trimesh.creation.box((0.2, 0.3, 0.25))
+    box.apply_translation([0.3, 0.0, 0.0])
+    return box
+
+
+def _two_parts(major: int = 48, minor: int = 24) -> trimesh.Trimesh:
+    """A torus and a box beside it: two components, with a hole."""
+    torus = trimesh.creation.torus(0.25, 0.08, major_sections=major, minor_sections=minor)
+    box = trimesh.creation.box((0.15, 0.15, 0.15))
+    box.apply_translation([0.0, 0.25, 0.1])
+    return trimesh.util.concatenate([torus, box])
+
+
+def _brute_force_depth(mesh: trimesh.Trimesh, pose: np.ndarray, k: Intrinsics) -> np.ndarray:
+    """Möller-Trumbore against every triangle, float64: (H, W) planar depth, inf background."""
+    rays = pixel_rays(k).reshape(-1, 3) @ pose[:3, :3].T
+    tri = np.asarray(mesh.triangles)
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    p = np.cross(rays[:, None], e2[None])
+    det = np.einsum("tk,rtk->rt", e1, p)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = pose[:3, 3] - tri[:, 0]
+        u = np.einsum("tk,rtk->rt", s, p) / det
+        q = np.cross(s, e1)
+        v = np.einsum("rk,tk->rt", rays, q) / det
+        t = np.einsum("tk,tk->t", e2, q)[None] / det
+    hit = (np.abs(det) > 1e-12) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    return np.where(hit, t, np.inf).min(axis=1).reshape(k.height, k.width)
+
+
+def _analytic_sphere(pose: np.ndarray, k: Intrinsics, radius: float) -> tuple[np.ndarray, ...]:
+    """Planar depth of a true sphere at the origin, the ray's distance to the centre, and the
+    cosine of the incidence angle: three (H, W) arrays (depth inf where the ray misses)."""
+    rays = pixel_rays(k) @ pose[:3, :3].T
+    c = pose[:3, 3]
+    a = np.einsum("hwk,hwk->hw", rays, rays)
+    b = rays @ c
+    closest = np.sqrt(np.maximum(c @ c - b**2 / a, 0.0))
+    disc = b**2 - a * (c @ c - radius**2)
+    with np.errstate(invalid="ignore"):
+        t = (-b - np.sqrt(disc)) / a
+        normal = (c + t[..., None] * rays) / radius
+        cosine = -np.einsum("hwk,hwk->hw", normal, rays) / np.sqrt(a)
+    return np.where(disc > 0, t, np.inf), closest, cosine
+
+
+def _check_sphere(depth: np.ndarray, pose: np.ndarray, k: Intrinsics, tol: float) -> None:
+    """The icosphere lies inside the true sphere, at least ``inner`` from the centre: its depth
+    is the analytic one plus at most gap / cos(incidence), and its silhouette sits in the disc."""
+    mesh = _sphere()
+    inner = np.abs(np.einsum("fk,fk->f", mesh.face_normals, mesh.triangles[:, 0])).min()
+    gap = SPHERE_RADIUS - inner
+    analytic, closest, cosine = _analytic_sphere(pose, k, SPHERE_RADIUS)
+    hit = valid_depth(depth)
+    assert not np.any(hit & ~np.isfinite(analytic)), "mesh hit outside the analytic disc"
+    assert np.all(closest[np.isfinite(analytic) & ~hit] >= inner - 1e-9), "hole inside the disc"
+    face_on = hit & (cosine > 0.3)
+    assert face_on.sum() > 0.5 * hit.sum()
+    excess = depth[face_on] - analytic[face_on]
+    assert excess.min() >= -tol
+    assert np.all(excess <= gap / cosine[face_on] + tol)
+
+
+def _agreement(first: np.ndarray, second: np.ndarray) -> tuple[float, float]:
+    """Fraction of common hit pixels within 1e-4, and the fraction of pixels only one hits."""
+    a, b = valid_depth(first), valid_depth(second)
+    both = a & b
+    assert both.sum() > 0
+    return float(np.mean(np.abs(first[both] - second[both]) <= 1e-4)), float(np.mean(a != b))
+
+
+# ---------------------------------------------------------------------------------------------
+# Ray casting
+
+
+@pytest.mark.parametrize("k", [CAMERA, ODD_CAMERA], ids=["centred", "off-centre"])
+@pytest.mark.parametrize(
+    "make", [_box_at_x, lambda: _two_parts(16, 8)], ids=["box", "coarse-two-parts"]
+)
+def test_raycast_matches_brute_force(make, k):
+    mesh = make()
+    depth = render_raycast(mesh.vertices, mesh.faces, POSES, k)
+    assert depth.shape == (len(POSES), k.height, k.width) and depth.dtype == np.float32
+    for d, pose in zip(depth, POSES, strict=True):
+        expected = _brute_force_depth(mesh, pose, k)
+        hit = np.isfinite(expected)
+        # Only rays grazing an edge may disagree on hit or miss.
+        assert np.mean(np.isfinite(d) != hit) < 0.002
+        both = hit & np.isfinite(d)
+        np.testing.assert_allclose(d[both], expected[both], rtol=0, atol=2e-6)
+        assert np.all(np.isinf(d[~valid_depth(d)]))
+
+
+@pytest.mark.parametrize("k", [CAMERA, ODD_CAMERA], ids=["centred", "off-centre"])
+def test_raycast_sphere_is_analytic(k):
+    mesh = _sphere()
+    depth = render_raycast(mesh.vertices, mesh.faces, POSES, k)
+    for d, pose in zip(depth, POSES, strict=True):
+        _check_sphere(d, pose, k, tol=1e-6)
+
+
+def test_raycast_orientation():
+    """A box at +x seen from +z (world up +y) is on the right, one at +y is at the top."""
+    pose = _poses([0, 0, 1])
+    right = render_raycast(_box_at_x().vertices, _box_at_x().faces, pose, CAMERA)[0]
+    cols = np.nonzero(valid_depth(right))[1]
+    assert cols.size and cols.min() > CAMERA.cx
+    up = trimesh.creation.box((0.2, 0.2, 0.2))
+    up.apply_translation([0.0, 0.3, 0.0])
+    rows = np.nonzero(valid_depth(render_raycast(up.vertices, up.faces, pose, CAMERA)[0]))[0]
+    assert rows.size and rows.max() < CAMERA.cy
+
+
+def test_render_raycast_stream_reports_bad_meshes():
+    box = _box_at_x()
+    jobs = [
+        RenderJob("good", box.vertices, box.faces, POSES[:2]),
+        RenderJob("bad", box.vertices, box.faces + 100, POSES[:2]),
+        RenderJob("flat", box.vertices[:, :2], box.faces, POSES[:2]),
+    ]
+    results = dict(render(jobs, CAMERA, backend="raycast"))
+    assert list(results) == ["good", "bad", "flat"]
+    np.testing.assert_array_equal(
+        results["good"], render_raycast(box.vertices, box.faces, POSES[:2], CAMERA)
+    )
+    assert isinstance(results["bad"], RenderError) and "face indices" in str(results["bad"])
+    assert isinstance(results["flat"], RenderError) and "'flat'" in str(results["flat"])
+
+
+def test_render_refuses_bad_settings(tmp_path):
+    with pytest.raises(ValueError, match="blender.*raycast"):
+        render([], CAMERA, backend="eevee")
+    with pytest.raises(ValueError, match="device"):
+        render([], CAMERA, backend="raycast", device="GPU")
+    with pytest.raises(ValueError, match="device must be one of"):
+        render_blender([], CAMERA, tmp_path, device="TPU")
+    with pytest.raises(ValueError, match="threads"):
+        render([], CAMERA, threads=-1)
+    with pytest.raises(FileNotFoundError, match="no-such-blender"):
+        render_blender([], CAMERA, tmp_path, blender="/no-such-blender")
+
+
+# ---------------------------------------------------------------------------------------------
+# Blender
+
+
+def _children() -> list[int]:
+    """Process ids of this process's live (not zombie) children (Linux /proc)."""
+    me, found = os.getpid(), []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = Path(f"/proc/{entry}/stat").read_text()
+            except OSError:
+                continue
+            state, parent = stat.rsplit(")", 1)[1].split()[:2]
+            if int(parent) == me and state != "Z":
+                found.append(int(entry))
+    return found
+
+
+@pytest.mark.blender
+def test_blender_agrees_with_raycast_and_streams(tmp_path):
+    """One process renders several meshes and views, yielding each mesh as soon as it is done;
+    an invalid job is reported without stopping the others; nothing is left in workdir."""
+    meshes = {"sphere": _sphere(), "box": _box_at_x(), "parts": _two_parts()}
+    jobs = [RenderJob(key, m.vertices, m.faces, POSES) for key, m in meshes.items()]
+    jobs.insert(1, RenderJob("broken", np.zeros((3, 3)), np.array([[0, 1, 5]]), POSES))
+    odd = RenderJob("parts-odd-camera", meshes["parts"].vertices, meshes["parts"].faces, POSES)
+
+    results, alive_at_first_result = {}, None
+    for key, result in render(jobs, CAMERA, workdir=tmp_path, threads=2):
+        if alive_at_first_result is None and not isinstance(result, RenderError):
+            alive_at_first_result = bool(_children())
+        results[key] = result
+    assert alive_at_first_result, "the first mesh should arrive while Blender still renders"
+    assert list(results) == ["broken", "sphere", "box", "parts"]
+    assert isinstance(results["broken"], RenderError) and "face indices" in str(results["broken"])
+    assert not any(tmp_path.iterdir())
+
+    ((_, odd_depth),) = render([odd], ODD_CAMERA, workdir=tmp_path)
+    results["parts-odd-camera"] = odd_depth
+    for key, depth in results.items():
+        if key == "broken":
+            continue
+        k = ODD_CAMERA if key == "parts-odd-camera" else CAMERA
+        mesh = meshes[key.split("-")[0]]
+        assert depth.shape == (len(POSES), k.height, k.width) and depth.dtype == np.float32
+        reference = render_raycast(mesh.vertices, mesh.faces, POSES, k)
+        for v in range(len(POSES)):
+            within, mask_mismatch = _agreement(depth[v], reference[v])
+            assert within >= 0.99, (key, v, within)
+            assert mask_mismatch <= 0.005, (key, v, mask_mismatch)
+        assert np.all(np.isinf(depth[~valid_depth(depth)]))
+    for d, pose in zip(results["sphere"], POSES, strict=True):
+        _check_sphere(d, pose, CAMERA, tol=1e-4)
+    # Orientation: the box at +x is on the right of the view from +z (pose 1).
+    cols = np.nonzero(valid_depth(results["box"][1]))[1]
+    assert cols.size and cols.min() > CAMERA.cx
+
+
+def _script_job(tmp_path: Path, entries: list[dict]) -> Path:
+    job = {"width": 32, "height": 24, "fx": 30.0, "fy": 30.0, "cx": 15.5, "cy": 11.5}
+    path = tmp_path / "job.json"
+    path.write_text(json.dumps(job | {"threads": 1, "device": "CPU", "jobs": entries}))
+    return path
+
+
+@pytest.mark.blender
+def test_blender_script_protocol(tmp_path):
+    """Missing and corrupt mesh files fail alone; a bad job file is fatal."""
+    box = _box_at_x()
+    np.savez(tmp_path / "box.npz", vertices=box.vertices, faces=box.faces)
+    (tmp_path / "corrupt.npz").write_bytes(b"not a zip file")
+    np.save(tmp_path / "poses.npy", opencv_to_blender(POSES[:2]))
+    entries = [
+        {"key": name, "mesh": str(tmp_path / f"{name}.npz"), "poses": str(tmp_path / "poses.npy"),
+         "out": str(tmp_path / f"{name}.npy")}
+        for name in ("missing", "corrupt", "box")
+    ]  # fmt: skip
+    run = subprocess.run(
+        [sys.executable, str(BLENDER_SCRIPT), "--job", str(_script_job(tmp_path, entries))],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 0, run.stderr
+    lines = run.stdout.splitlines()
+    assert [line.split()[:2] for line in lines] == [
+        ["NBV-FAIL", "missing"],
+        ["NBV-FAIL", "corrupt"],
+        ["NBV-DONE", "box"],
+    ], run.stdout
+    depth = np.load(tmp_path / "box.npy")
+    assert depth.shape == (2, 24, 32) and depth.dtype == np.float32
+    assert not (tmp_path / "missing.npy").exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith("nbv-exr-")] == []
+
+    bad = _script_job(tmp_path, entries)
+    bad.write_text(bad.read_text().replace('"device": "CPU"', '"device": "TPU"'))
+    run = subprocess.run(
+        [sys.executable, str(BLENDER_SCRIPT), "--job", str(bad)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 2
+    assert run.stdout.startswith("NBV-FATAL ") and "TPU" in run.stdout
+
+
+@pytest.mark.blender
+def test_blender_crash_restarts_for_the_rest(tmp_path):
+    """Killing the Blender process fails the mesh it was on; a new process renders the rest."""
+    box, parts = _box_at_x(), _two_parts()
+    jobs = [
+        RenderJob("first", box.vertices, box.faces, POSES),
+        RenderJob("second", parts.vertices, parts.faces, POSES[:2]),
+        RenderJob("third", box.vertices, box.faces, POSES[:2]),
+    ]
+    killed: list[int] = []
+
+    def kill_first_child() -> None:
+        # Blender needs about a second to start, so the first mesh cannot be done yet.
+        deadline = time.monotonic() + 60
+        while not killed and time.monotonic() < deadline:
+            for pid in _children():
+                os.kill(pid, signal.SIGKILL)
+                killed.append(pid)
+            time.sleep(0.005)
+
+    killer = threading.Thread(target=kill_first_child)
+    killer.start()
+    try:
+        results = dict(render(jobs, CAMERA, workdir=tmp_path))
+    finally:
+        killed.append(-1)
+        killer.join()
+    assert list(results) == ["first", "second", "third"]
+    assert isinstance(results["first"], RenderError)
+    assert "SIGKILL" in str(results["first"]) and "blender.log" in str(results["first"])
+    expected = render_raycast(box.vertices, box.faces, POSES[:2], CAMERA)
+    assert _agreement(results["third"][0], expected[0])[0] >= 0.99
+    assert results["second"].shape == (2, CAMERA.height, CAMERA.width)

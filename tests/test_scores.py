@@ -1,0 +1,228 @@
+import itertools
+
+import numpy as np
+import pytest
+
+from nbv.scores import (
+    DEFAULT_EPS,
+    coverage,
+    coverage_bits,
+    coverage_from_bits,
+    coverage_gains,
+    covered_mask,
+    hull_vertices,
+    hull_volume,
+    view_hull_vertices,
+    vig,
+    vig_gains,
+    vig_of_state,
+)
+
+CUBE = np.array(list(itertools.product([0.0, 1.0], repeat=3)))
+
+
+def _brute_covered(partial: np.ndarray, gt: np.ndarray, eps: float) -> np.ndarray:
+    """Reference: every pairwise distance."""
+    if len(partial) == 0:
+        return np.zeros(len(gt), dtype=bool)
+    d = np.linalg.norm(gt[:, None, :] - partial[None, :, :], axis=2)
+    return (d < eps).any(axis=1)
+
+
+def _random_views(rng: np.random.Generator, n_views: int, n_gt: int, eps: float):
+    """A ground truth on a unit sphere and view clouds: noisy copies of random caps of it."""
+    gt = rng.normal(size=(n_gt, 3))
+    gt /= np.linalg.norm(gt, axis=1, keepdims=True)
+    views = []
+    for _ in range(n_views):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        seen = gt[gt @ axis > rng.uniform(0.0, 0.8)]
+        noise = rng.uniform(0.0, 2.0 * eps, size=(len(seen), 1)) * rng.normal(size=(len(seen), 3))
+        views.append(seen + noise / np.sqrt(3.0))
+    return gt, views
+
+
+def test_default_eps_is_pcnbv():
+    assert DEFAULT_EPS == 0.00707
+    assert DEFAULT_EPS**2 == pytest.approx(5e-5, rel=1e-3)
+
+
+def test_coverage_matches_brute_force():
+    rng = np.random.default_rng(0)
+    gt = rng.uniform(-0.5, 0.5, size=(400, 3))
+    partial = gt[:150] + rng.normal(scale=0.01, size=(150, 3))
+    for eps in (0.005, DEFAULT_EPS, 0.02, 0.2):
+        ref = _brute_covered(partial, gt, eps)
+        np.testing.assert_array_equal(covered_mask(partial, gt, eps), ref)
+        assert coverage(partial, gt, eps) == ref.mean()
+    assert 0.0 < coverage(partial, gt) < 1.0
+
+
+def test_coverage_of_the_ground_truth_itself_is_one_and_empty_is_zero():
+    rng = np.random.default_rng(1)
+    gt = rng.uniform(size=(100, 3)).astype(np.float32)
+    assert coverage(gt, gt) == 1.0
+    assert coverage(np.zeros((0, 3)), gt) == 0.0
+    with pytest.raises(ValueError, match="empty"):
+        coverage(gt, np.zeros((0, 3)))
+    with pytest.raises(ValueError, match="eps"):
+        coverage(gt, gt, eps=0.0)
+    with pytest.raises(ValueError, match=r"\(N, 3\)"):
+        coverage(gt[:, :2], gt)
+
+
+def test_eps_boundary_is_strict():
+    gt = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    eps = DEFAULT_EPS
+    below = np.array([[eps * (1 - 1e-6), 0.0, 0.0]])
+    above = np.array([[eps * (1 + 1e-6), 0.0, 0.0]])
+    np.testing.assert_array_equal(covered_mask(below, gt, eps), [True, False])
+    np.testing.assert_array_equal(covered_mask(above, gt, eps), [False, False])
+    diag = np.array([[1.0, eps * (1 - 1e-6) / np.sqrt(2), eps * (1 - 1e-6) / np.sqrt(2)]])
+    np.testing.assert_array_equal(covered_mask(diag, gt, eps), [False, True])
+
+
+def test_bits_give_the_coverage_of_the_merged_cloud():
+    rng = np.random.default_rng(2)
+    eps = 0.05
+    gt, views = _random_views(rng, n_views=9, n_gt=301, eps=eps)  # 301: bits need padding
+    bits = coverage_bits(views, gt, eps)
+    assert bits.shape == (9, 38) and bits.dtype == np.uint8
+    for v, pts in enumerate(views):
+        np.testing.assert_array_equal(
+            np.unpackbits(bits[v])[: len(gt)], _brute_covered(pts, gt, eps)
+        )
+    for _ in range(40):
+        state = rng.random(9) < rng.uniform(0.1, 0.9)
+        merged = np.concatenate([views[v] for v in np.flatnonzero(state)] + [np.zeros((0, 3))])
+        expected = _brute_covered(merged, gt, eps).mean()
+        assert coverage_from_bits(bits, state, len(gt)) == expected
+        gains = coverage_gains(bits, state, len(gt))
+        for v in range(9):
+            if state[v]:
+                assert gains[v] == 0.0
+            else:
+                grown = state.copy()
+                grown[v] = True
+                assert gains[v] == pytest.approx(
+                    coverage_from_bits(bits, grown, len(gt)) - expected, abs=1e-15
+                )
+    assert coverage_from_bits(bits, np.zeros(9, dtype=bool), len(gt)) == 0.0
+    np.testing.assert_allclose(
+        coverage_gains(bits, np.zeros(9, dtype=bool), len(gt)),
+        [coverage(v, gt, eps) for v in views],
+    )
+
+
+def test_bits_refuse_inconsistent_input():
+    bits = np.zeros((3, 4), dtype=np.uint8)
+    with pytest.raises(ValueError, match="n_gt"):
+        coverage_from_bits(bits, np.ones(3, dtype=bool), 40)
+    with pytest.raises(ValueError, match="view_state"):
+        coverage_from_bits(bits, np.ones(4, dtype=bool), 32)
+    with pytest.raises(ValueError, match="uint8"):
+        coverage_gains(bits.astype(np.int64), np.ones(3, dtype=bool), 32)
+    assert coverage_from_bits(bits, np.array([1, 0, 1]), 32) == 0.0
+
+
+def test_hull_volume_of_known_shapes():
+    assert hull_volume(CUBE) == pytest.approx(1.0, abs=1e-12)
+    rng = np.random.default_rng(3)
+    inside = rng.uniform(0.1, 0.9, size=(200, 3))
+    assert hull_volume(np.concatenate([CUBE * 2.0 - 0.5, inside])) == pytest.approx(8.0)
+    # Regular tetrahedron with edge a: a^3 / (6 sqrt 2).
+    tet = np.array([[1, 1, 1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1]], dtype=np.float32)
+    a = 2.0 * np.sqrt(2.0)
+    assert hull_volume(tet) == pytest.approx(a**3 / (6.0 * np.sqrt(2.0)), rel=1e-6)
+    d = rng.normal(size=(20000, 3))
+    sphere = 0.5 * d / np.linalg.norm(d, axis=1, keepdims=True)
+    vol = hull_volume(sphere)
+    assert vol < 4.0 / 3.0 * np.pi * 0.125
+    assert vol == pytest.approx(4.0 / 3.0 * np.pi * 0.125, rel=2e-3)
+
+
+@pytest.mark.parametrize(
+    "points",
+    [
+        np.zeros((0, 3)),
+        np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]]),
+        np.repeat([[0.3, 0.2, 0.1]], 50, axis=0),
+        np.array([[t, 2 * t, -t] for t in np.linspace(0, 1, 20)]),
+        np.array([[x, y, 0.25] for x in range(5) for y in range(5)], dtype=float),
+        np.array([[x, y, x + y] for x in range(5) for y in range(5)], dtype=float),
+    ],
+    ids=["empty", "3 points", "duplicates", "colinear", "flat grid", "tilted plane"],
+)
+def test_degenerate_hulls_have_no_volume(points):
+    assert hull_volume(points) == 0.0
+    verts = hull_vertices(points)
+    assert len(verts) <= max(len(np.unique(points, axis=0)), 0)
+    if len(points):
+        # The kept points span the same lower-dimensional hull: same extent along every axis.
+        np.testing.assert_allclose(verts.min(axis=0), points.min(axis=0))
+        np.testing.assert_allclose(verts.max(axis=0), points.max(axis=0))
+
+
+def test_hull_vertices_of_a_flat_grid_are_its_corners():
+    grid = np.array([[x, y, 0.25] for x in range(5) for y in range(5)], dtype=float)
+    corners = {(0.0, 0.0), (0.0, 4.0), (4.0, 0.0), (4.0, 4.0)}
+    assert {tuple(v[:2]) for v in hull_vertices(grid)} == corners
+    line = np.array([[t, 2 * t, -t] for t in np.linspace(0, 1, 20)])
+    ends = hull_vertices(line)
+    np.testing.assert_allclose(ends[np.argsort(ends[:, 0])], line[[0, -1]])
+    assert hull_vertices(np.repeat([[1.0, 2, 3]], 7, axis=0)).shape == (1, 3)
+
+
+def test_hull_vertices_span_the_same_hull():
+    rng = np.random.default_rng(4)
+    pts = rng.normal(size=(3000, 3))
+    verts = hull_vertices(pts)
+    assert len(verts) < len(pts)
+    assert hull_volume(verts) == pytest.approx(hull_volume(pts), rel=1e-12)
+    assert np.isin(verts, pts).all()
+
+
+def test_vig_of_cube_halves_and_flat_ground_truth():
+    rng = np.random.default_rng(5)
+    gt = np.concatenate([CUBE, rng.uniform(size=(500, 3))])
+    lower = gt[gt[:, 2] <= 0.5]
+    lower_box = np.concatenate([lower, CUBE * [1, 1, 0.5]])
+    assert vig(lower_box, gt) == pytest.approx(0.5, abs=1e-12)
+    assert vig(gt, gt) == pytest.approx(1.0)
+    assert vig(np.zeros((0, 3)), gt) == 0.0
+    flat = np.array([[x, y, 0.0] for x in range(3) for y in range(3)], dtype=float)
+    with pytest.raises(ValueError, match="VIG is undefined"):
+        vig(gt, flat)
+    with pytest.raises(ValueError, match="non-finite"):
+        hull_volume(np.array([[np.nan, 0, 0]] * 5))
+
+
+def test_vig_of_state_equals_the_hull_of_the_merged_cloud():
+    rng = np.random.default_rng(6)
+    gt, views = _random_views(rng, n_views=12, n_gt=1000, eps=0.01)
+    # A flat view and an empty one must not break the union.
+    views[3] = np.array([[x, y, 0.9] for x in np.linspace(-0.3, 0.3, 6) for y in (-0.2, 0.2)])
+    views[7] = np.zeros((0, 3))
+    gt_volume = hull_volume(gt)
+    verts = view_hull_vertices(views)
+    assert sum(len(v) for v in verts) < sum(len(v) for v in views)
+    for _ in range(25):
+        state = rng.random(12) < rng.uniform(0.1, 0.7)
+        merged = np.concatenate([views[v] for v in np.flatnonzero(state)] + [np.zeros((0, 3))])
+        expected = vig(merged, gt)
+        assert vig_of_state(verts, state, gt_volume) == pytest.approx(expected, rel=1e-10)
+        gains = vig_gains(verts, state, gt_volume)
+        for v in range(12):
+            if state[v]:
+                assert gains[v] == 0.0
+            else:
+                grown = state.copy()
+                grown[v] = True
+                assert gains[v] == pytest.approx(
+                    vig_of_state(verts, grown, gt_volume) - expected, abs=1e-10
+                )
+        assert (gains >= -1e-12).all()
+    assert vig_of_state(verts, np.zeros(12, dtype=bool), gt_volume) == 0.0
+    with pytest.raises(ValueError, match="gt_volume"):
+        vig_of_state(verts, np.zeros(12, dtype=bool), 0.0)

@@ -1,0 +1,293 @@
+"""One training run: leave-one-category-out, checkpoints, metrics, resumption.
+
+Per epoch: a seeded shuffle of the training samples, batches of ``batch_size``, each cloud a seeded
+random subset of ``train_points`` of its stored points (the signature is used whole), loss = sum
+of squared errors over the V outputs (mean over the batch) + ``l2`` times the squared weights.
+Then the validation loss, Spearman correlation and best-view hits on the held-out category's
+samples, and every ``eval_every`` epochs (and at the last) the reconstruction metric: coverage by
+view and AUC of the network's episodes from ``start_views`` on the held-out category's models.
+
+``out_dir`` gets ``last.pt`` (every epoch, with the optimizer state, for resuming), ``best.pt``
+(best validation AUC), ``metrics.csv``, ``reference.json`` (random and oracle on the same
+episodes) and TensorBoard logs in ``tb/``. Every random draw of an epoch comes from
+``(seed, epoch)``, so a resumed run continues exactly as an uninterrupted one would.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+import nbv.dataset
+from nbv.dataset.reader import DatasetError
+from nbv.episodes import auc, run_episode
+from nbv.net import PCNBV, CheckpointError, PCNBVConfig, load_checkpoint, save_checkpoint
+from nbv.policies import NetworkPolicy, OraclePolicy, RandomPolicy
+from nbv.samples import SampleSet, load_samples
+from train.config import TrainSettings
+from train.metrics import best_view_hits, spearman
+
+
+def choose_device(name: str) -> torch.device:
+    """``auto`` -> CUDA when present, else the CPU."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ValueError("device=cuda: no CUDA device here; use device=auto or device=cpu")
+    return torch.device(name)
+
+
+def dataset_identity(folder: Path) -> str:
+    """A short hash of a dataset's shard settings and model keys."""
+    ds = nbv.dataset.open(folder)
+    text = json.dumps([str(ds.attrs.get("config", "")), sorted(ds)], sort_keys=True)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def split_samples(samples: SampleSet, settings: TrainSettings) -> tuple[SampleSet, SampleSet]:
+    """(training, validation) samples of a fold."""
+    known = np.isin(samples.category, settings.categories)
+    train = samples.select(
+        known & (samples.split == "train") & (samples.category != settings.held_out)
+    )
+    val = samples.select(samples.category == settings.held_out)
+    if len(train) == 0 or len(val) == 0:
+        raise DatasetError(
+            f"{settings.dataset}: fold {settings.fold} has {len(train)} training and {len(val)} "
+            f"validation samples (held-out category {settings.held_out!r}; categories present: "
+            f"{sorted(set(samples.category))}); make a dataset with the training categories"
+        )
+    return train, val
+
+
+def batch_inputs(
+    samples: SampleSet, index: np.ndarray, settings: TrainSettings, rng: np.random.Generator | None
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(points (B, N, 3), view_state (B, V) float, target (B, V)) tensors of some samples.
+
+    Clouds are reduced to ``train_points`` by a random subset per sample (``rng``), or to their
+    first ``train_points`` farthest-point-sampled points when ``rng`` is None (validation).
+    """
+    if settings.input == "signature":
+        points = samples.signature[index]
+    else:
+        points = samples.points[index]
+        n = min(settings.train_points, points.shape[1])
+        if rng is None:
+            points = points[:, :n]
+        else:
+            pick = np.argsort(rng.random(points.shape[:2]), axis=1)[:, :n]
+            points = np.take_along_axis(points, pick[..., None], axis=1)
+    return (
+        torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32)),
+        torch.from_numpy(samples.view_state[index].astype(np.float32)),
+        torch.from_numpy(samples.target[index].astype(np.float32)),
+    )
+
+
+def loss_fn(model: PCNBV, pred: torch.Tensor, target: torch.Tensor, l2: float) -> torch.Tensor:
+    """Sum of squared errors over the views (mean over the batch) plus ``l2`` * |weights|^2."""
+    penalty = sum((p**2).sum() for n, p in model.named_parameters() if p.ndim > 1)
+    return ((pred - target) ** 2).sum(dim=1).mean() + l2 * penalty
+
+
+def predict(
+    model: PCNBV, samples: SampleSet, settings: TrainSettings, device: torch.device
+) -> tuple[np.ndarray, float]:
+    """Predicted gains of every sample (S, V) and the mean loss, in eval mode."""
+    model.eval()
+    preds, losses = [], []
+    with torch.no_grad():
+        for start in range(0, len(samples), settings.batch_size):
+            index = np.arange(start, min(start + settings.batch_size, len(samples)))
+            x, s, t = (a.to(device) for a in batch_inputs(samples, index, settings, None))
+            pred = model(x, s)
+            losses.append(float(((pred - t) ** 2).sum(dim=1).sum()))
+            preds.append(pred.cpu().numpy())
+    return np.concatenate(preds), sum(losses) / len(samples)
+
+
+def episodes_metric(dataset, keys: list[str], policy, start_views) -> np.ndarray:
+    """(E, 10) coverage curves of ``policy`` on the original viewspace, every model and start."""
+    out = []
+    for key in keys:
+        model = dataset.model(key, ("original",))
+        for start in start_views:
+            out.append(run_episode(model, "original", int(start), policy).coverage)
+    return np.array(out)
+
+
+def _resume(out_dir: Path, settings: TrainSettings, identity: str, model, optimizer, scheduler):
+    """Load ``last.pt`` when present; returns (next epoch, best AUC)."""
+    last = out_dir / "last.pt"
+    if not last.exists():
+        return 0, -np.inf
+    saved, extra = load_checkpoint(last, n_views=model.config.n_views)
+    if extra.get("dataset_identity") != identity:
+        raise CheckpointError(
+            f"checkpoint {last} was trained on another dataset ({extra.get('dataset_identity')} "
+            f"vs {identity}); delete {out_dir} or set out_dir=... to start afresh"
+        )
+    if saved.config != model.config or extra.get("settings", {}).get("input") != settings.input:
+        raise CheckpointError(
+            f"checkpoint {last} holds another network ({saved.config}); delete {out_dir} or set "
+            "out_dir=... to start afresh"
+        )
+    model.load_state_dict(saved.state_dict())
+    opt = extra["optimizer"]
+    opt["state"] = {int(k): v for k, v in opt["state"].items()}
+    optimizer.load_state_dict(opt)
+    scheduler.load_state_dict(extra["scheduler"])
+    return int(extra["epoch"]) + 1, float(extra.get("best_auc", -np.inf))
+
+
+def _plain_settings(settings: TrainSettings) -> dict:
+    d = asdict(settings)
+    return json.loads(json.dumps(d, default=str))
+
+
+def run(settings: TrainSettings) -> dict:
+    """Train one fold; returns the final metrics (see the module docstring)."""
+    if settings.threads:
+        torch.set_num_threads(settings.threads)
+    device = choose_device(settings.device)
+    samples = load_samples(settings.dataset, settings.score)
+    train, val = split_samples(samples, settings)
+    dataset = nbv.dataset.open(settings.dataset)
+    identity = dataset_identity(settings.dataset)
+    val_keys = dataset.keys(category=settings.held_out)
+    n_views = samples.view_state.shape[1]
+    lmax = int(samples.attrs.get("lmax", 3))
+
+    torch.manual_seed(settings.seed)
+    config = PCNBVConfig(n_views=n_views, **settings.net)
+    model = PCNBV(config).to(device)
+    optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
+    scheduler = torch.optim.lr_scheduler.StepLR(
+        optimizer, settings.lr_step_epochs, settings.lr_decay
+    )
+    out_dir = settings.out_dir
+    out_dir.mkdir(parents=True, exist_ok=True)
+    first_epoch, best_auc = _resume(out_dir, settings, identity, model, optimizer, scheduler)
+
+    reference_file = out_dir / "reference.json"
+    if not reference_file.exists():
+        reference = {
+            "random": episodes_metric(
+                dataset, val_keys, RandomPolicy(np.random.default_rng(settings.seed)),
+                settings.start_views,
+            ).mean(axis=0).tolist(),
+            "oracle": episodes_metric(
+                dataset, val_keys, OraclePolicy("coverage"), settings.start_views
+            ).mean(axis=0).tolist(),
+        }  # fmt: skip
+        reference_file.write_text(json.dumps(reference, indent=1))
+    reference = json.loads(reference_file.read_text())
+
+    from torch.utils.tensorboard import SummaryWriter
+
+    writer = SummaryWriter(str(out_dir / "tb"))
+    metrics_file = out_dir / "metrics.csv"
+    extra_base = {
+        "settings": _plain_settings(settings),
+        "dataset_identity": identity,
+        "input": settings.input,
+        "lmax": lmax,
+        "eval_points": settings.eval_points,
+        "held_out": settings.held_out,
+    }
+    row: dict = {}
+    for epoch in range(first_epoch, settings.epochs):
+        rng = np.random.default_rng([settings.seed, epoch])
+        torch.manual_seed(settings.seed * 100003 + epoch)
+        model.train()
+        order = rng.permutation(len(train))
+        batches = [
+            order[i : i + settings.batch_size] for i in range(0, len(order), settings.batch_size)
+        ]
+        load_time = step_time = 0.0
+        losses = []
+        bar = tqdm(
+            batches, desc=f"epoch {epoch + 1}/{settings.epochs}", disable=not settings.progress
+        )
+        for index in bar:
+            t0 = time.perf_counter()
+            x, s, t = (a.to(device) for a in batch_inputs(train, index, settings, rng))
+            t1 = time.perf_counter()
+            optimizer.zero_grad()
+            loss = loss_fn(model, model(x, s), t, settings.l2)
+            loss.backward()
+            optimizer.step()
+            t2 = time.perf_counter()
+            load_time += t1 - t0
+            step_time += t2 - t1
+            losses.append(loss.item())
+            bar.set_postfix(
+                loss=f"{np.mean(losses[-20:]):.4f}", sps=f"{len(index) / (t2 - t0):.0f}"
+            )
+        scheduler.step()
+        pred, val_loss = predict(model, val, settings, device)
+        row = {
+            "epoch": epoch + 1,
+            "lr": optimizer.param_groups[0]["lr"],
+            "train_loss": float(np.mean(losses)),
+            "val_loss": val_loss,
+            "val_spearman": spearman(pred, val.target, val.view_state),
+            "val_best_view_hits": best_view_hits(pred, val.target, val.view_state),
+            "samples_per_s": len(train) / max(load_time + step_time, 1e-9),
+            "load_fraction": load_time / max(load_time + step_time, 1e-9),
+        }
+        if (epoch + 1) % settings.eval_every == 0 or epoch + 1 == settings.epochs:
+            policy = NetworkPolicy(model.eval(), settings.input, settings.eval_points, lmax)
+            curve = episodes_metric(dataset, val_keys, policy, settings.start_views).mean(axis=0)
+            row["val_auc"] = auc(curve)
+            row.update({f"val_cov_{i + 1}": float(c) for i, c in enumerate(curve)})
+            if row["val_auc"] > best_auc:
+                best_auc = row["val_auc"]
+                save_checkpoint(
+                    out_dir / "best.pt", model, {**extra_base, "epoch": epoch, "metrics": row}
+                )
+        for name, value in row.items():
+            if name != "epoch":
+                writer.add_scalar(name, value, epoch + 1)
+        _append_csv(metrics_file, row)
+        opt = optimizer.state_dict()
+        opt["state"] = {str(k): v for k, v in opt["state"].items()}
+        save_checkpoint(
+            out_dir / "last.pt",
+            model,
+            {**extra_base, "epoch": epoch, "metrics": row, "best_auc": best_auc,
+             "optimizer": opt, "scheduler": scheduler.state_dict()},
+        )  # fmt: skip
+    writer.close()
+    return {
+        "best_auc": best_auc,
+        "last": row,
+        "reference": reference,
+        "random_auc": auc(reference["random"]),
+        "oracle_auc": auc(reference["oracle"]),
+    }
+
+
+def _append_csv(path: Path, row: dict) -> None:
+    """Append one row, rewriting the header when new columns appear."""
+    rows = []
+    if path.exists():
+        with open(path, newline="") as handle:
+            rows = list(csv.DictReader(handle))
+    rows = [r for r in rows if int(r["epoch"]) < row["epoch"]] + [row]
+    columns = list(dict.fromkeys(k for r in rows for k in r))
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, columns)
+        writer.writeheader()
+        writer.writerows(rows)
+    tmp.replace(path)
