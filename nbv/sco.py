@@ -13,7 +13,7 @@ The paper's Algorithms 2 and 3:
 :func:`plan` runs all of it on the partial cloud, :func:`plan_sph` on the spherical signature of
 the cloud (:mod:`nbv.sph`) placed back at the cloud's centroid.
 
-View simulation has two paths that agree on >= 99 % of (view, sample) pairs:
+View simulation has two paths:
 
 * ``"analytic"`` (the fast one). A convex surface cannot occlude itself, so a hull sample ``p``
   with outward normal ``n`` is seen from a camera centred at ``c`` exactly when its face looks at
@@ -27,7 +27,9 @@ View simulation has two paths that agree on >= 99 % of (view, sample) pairs:
   scores. The paths differ only at borders: a sample on a face seen almost edge-on may be
   farther than ``eps`` from every pixel's point (the pixels spread out along the face), and a
   sample just behind the silhouette or just outside the image may lie within ``eps`` of a
-  point that is seen.
+  point that is seen. On object-sized hulls at 640 x 480 and ``eps = 0.00707`` they agree on
+  about 97.5 to 99 % of (view, sample) pairs: the longer the silhouette for the hull's area
+  (boxes, hulls of a single view), the lower.
 
 Cameras sit at the viewspace positions and look at the origin (:func:`nbv.camera.viewspace_poses`).
 Distances are in the cloud's units (the normalised object frame, where the object fits in a
@@ -45,6 +47,7 @@ from scipy.spatial import ConvexHull, QhullError
 
 from nbv.camera import Intrinsics, backproject, viewspace_poses
 from nbv.scores import DEFAULT_EPS, covered_mask
+from nbv.sph import signature_with_centroid
 
 #: Number of hull samples of the paper.
 DEFAULT_N_SAMP = 16384
@@ -125,8 +128,7 @@ def convex_hull(points: np.ndarray) -> ConvexHull:
             f"the convex hull of points ({len(pts)} points) has no volume: the cloud is flat, "
             f"colinear or a single point (Qhull: {first})"
         ) from None
-    extent = np.ptp(pts, axis=0)
-    if not hull.volume > _FLAT_RTOL * float(np.prod(extent)) or hull.volume <= 0.0:
+    if not hull.volume > _FLAT_RTOL * float(np.prod(np.ptp(pts, axis=0))):
         raise ValueError(
             f"the convex hull of points ({len(pts)} points) has no volume "
             f"({hull.volume:.3g}): the cloud is flat"
@@ -158,13 +160,14 @@ def sample_on_hull(
     counts = gen.multinomial(n_samp, area / area.sum())
     face = np.repeat(np.arange(len(area)), counts)
     # Uniform on a triangle: sqrt of one uniform for the distance from the first corner.
-    r1, r2 = gen.random(n_samp), gen.random(n_samp)
-    s = np.sqrt(r1)
-    samples = (
-        tri[face, 0] + (s * (1.0 - r2))[:, None] * edge1[face] + (s * r2)[:, None] * edge2[face]
-    )
-    normals = np.ascontiguousarray(hull.equations[face, :3])
-    return samples, normals, face
+    s = np.sqrt(gen.random(n_samp))
+    r2 = gen.random(n_samp)
+    # One row-major repeat of everything a triangle's samples need (faster than gathers).
+    per_face = np.concatenate([tri[:, 0], edge1, edge2, hull.equations[:, :3]], axis=1)
+    rows = np.repeat(per_face, counts, axis=0)
+    samples = rows[:, 0:3] + (s * (1.0 - r2))[:, None] * rows[:, 3:6]
+    samples += (s * r2)[:, None] * rows[:, 6:9]
+    return samples, np.ascontiguousarray(rows[:, 9:12]), face
 
 
 def sample_hull(
@@ -308,24 +311,35 @@ def analytic_visibility_faces(
         raise ValueError(f"face_ids must lie in [0, {n_faces}), the hull's triangles")
     n_views = len(poses)
     planes = _frustum_planes(poses, intrinsics)  # (V, 5, 4)
-    corner_ids, tri = np.unique(hull.simplices, return_inverse=True)
-    tri = tri.reshape(-1, 3)
+    # Corners are tested once each: Qhull's vertex list, renumbered.
+    corner_ids = hull.vertices
+    renumber = np.empty(len(hull.points), dtype=np.intp)
+    renumber[corner_ids] = np.arange(len(corner_ids))
+    tri = renumber[hull.simplices]
     signed = planes[..., :3].reshape(-1, 3) @ hull.points[corner_ids].T
     signed += planes[..., 3].reshape(-1, 1)
     corner_in = _inside(signed.reshape(n_views, 5, -1))  # (V, corners)
     all_in = corner_in[:, tri[:, 0]] & corner_in[:, tri[:, 1]] & corner_in[:, tri[:, 2]]
     normal, offset = hull.equations[:, :3], hull.equations[:, 3]
     facing = poses[:, :3, 3] @ normal.T + offset > _FACING_TOL  # n . c + d = n . (c - p)
-    seen = (facing & all_in)[:, face_ids]
+    seen_face = np.ascontiguousarray(facing & all_in)
+    counts = np.bincount(face_ids, minlength=n_faces)
+    grouped = bool(np.all(face_ids[1:] >= face_ids[:-1]))
+    if grouped:
+        # Samples grouped by triangle (as sample_on_hull draws them): a row-major repeat, much
+        # faster than a gather and C-ordered for the bit packing that follows.
+        seen = np.repeat(seen_face, counts, axis=1)
+    else:
+        seen = np.take(seen_face, face_ids, axis=1)
     cut_view, cut_face = np.nonzero(facing & ~all_in)
     if cut_view.size:
         # Triangles the image border cuts (or that lie outside it): their samples one by one.
-        counts = np.bincount(face_ids, minlength=n_faces)
-        order = np.argsort(face_ids, kind="stable")
         starts = np.cumsum(counts) - counts
         lengths = counts[cut_face]
         first = np.repeat(starts[cut_face] - np.cumsum(lengths) + lengths, lengths)
-        sample_idx = order[first + np.arange(lengths.sum())]
+        sample_idx = first + np.arange(lengths.sum())
+        if not grouped:
+            sample_idx = np.argsort(face_ids, kind="stable")[sample_idx]
         view_idx = np.repeat(cut_view, lengths)
         p = planes[view_idx]
         signed = np.einsum("mkj,mj->km", p[..., :3], samples[sample_idx]) + p[..., 3].T
@@ -427,7 +441,8 @@ def view_sets(
 def pack_sets(sets: np.ndarray) -> np.ndarray:
     """Bit rows of a ``(V, n)`` bool set matrix: ``(V, ceil(n / 64))`` uint64, zero padding.
 
-    Bit ``i`` of row ``v`` (little-endian within bytes and words) is ``sets[v, i]``.
+    The bytes of row ``v`` are ``np.packbits(sets[v], bitorder="little")`` padded with zeros to
+    whole 64-bit words.
     """
     sets = _as_sets(sets)
     n_views, n = sets.shape
@@ -625,7 +640,8 @@ def _plan_on_cloud(
     ):
         timings[key] = timings.get(key, 0.0) + seconds
     timings["total"] = sum(
-        timings[k] for k in ("signature", "hull", "sampling", "simulation", "sets", "greedy")
+        timings[k]
+        for k in ("signature", "hull", "sampling", "simulation", "sets", "greedy")
         if k in timings
     )
     return Plan(views, gains, n_covered / len(samples), timings)
@@ -682,8 +698,6 @@ def sph_hull_points(points: np.ndarray, lmax: int = 3) -> np.ndarray:
         ``(4 (lmax + 1)^2, 3)`` float64 points: :func:`nbv.sph.signature_with_centroid` shifted
         by the centroid.
     """
-    from nbv.sph import signature_with_centroid
-
     signature, centroid = signature_with_centroid(_as_cloud(points, "points"), lmax)
     return signature.astype(np.float64) + centroid
 

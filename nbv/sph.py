@@ -118,21 +118,20 @@ def _harmonics_rows(
         # those of degrees l - 2 and l - 1 (scalars at l = m).
         q_l2, q_l1 = 0.0, q_mm
         for l in range(m, lmax + 1):  # noqa: E741
+            base = l * l + l
+            # For m = 0 the Legendre values are the harmonics: written in place, no copy.
+            dest = out[base] if m == 0 else None
             if l == m + 1:
-                q_l = (np.sqrt(2.0 * m + 3.0) * q_mm) * z
+                q_l = np.multiply(np.sqrt(2.0 * m + 3.0) * q_mm, z, out=dest)
             elif l > m + 1:
                 a = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
                 b = np.sqrt(((l - 1.0) ** 2 - m * m) / (4.0 * (l - 1.0) ** 2 - 1.0))
-                q_l = a * z * q_l1 - (a * b) * q_l2
+                q_l = np.subtract(a * z * q_l1, (a * b) * q_l2, out=dest)
             else:
                 q_l = q_mm
             if l > m:
                 q_l2, q_l1 = q_l1, q_l
-            base = l * l + l
-            if m == 0:
-                if l > 0:
-                    out[base] = q_l
-            else:
+            if m > 0:
                 np.multiply(q_l, c_m, out=out[base + m])
                 np.multiply(q_l, s_m, out=out[base - m])
     return out
@@ -243,23 +242,22 @@ def _fit_coords(coords: np.ndarray, lmax: int, center: np.ndarray | None) -> np.
     c = _center_of(coords, center)
     k = (lmax + 1) ** 2
     # Normal equations accumulated block by block: the design matrix is never held whole.
-    gram = np.zeros((k, k))
-    rhs = np.zeros(k)
-    chunk, block = _block_sizes(k)
-    design = np.empty((k, block))
-    radii = np.empty(block)
+    # The radii ride along as an extra design row: one product gives both A A^T and A r.
+    normal = np.zeros((k + 1, k + 1))
+    chunk, block = _block_sizes(k + 1)
+    design = np.empty((k + 1, block))
     n_used = 0
     for block_start in range(0, coords.shape[1], block):
         filled = 0
         for start in range(block_start, min(block_start + block, coords.shape[1]), chunk):
             x, y, z, r = _unit_offsets(coords[:, start : start + chunk], c)
-            _harmonics_rows(lmax, x, y, z, out=design[:, filled : filled + len(r)])
-            radii[filled : filled + len(r)] = r
+            _harmonics_rows(lmax, x, y, z, out=design[:k, filled : filled + len(r)])
+            design[k, filled : filled + len(r)] = r
             filled += len(r)
         rows = design[:, :filled]
-        gram += rows @ rows.T
-        rhs += rows @ radii[:filled]
+        normal += rows @ rows.T
         n_used += filled
+    gram, rhs = normal[:k, :k], normal[:k, k]
     if not (np.isfinite(gram).all() and np.isfinite(rhs).all()):
         raise ValueError("points holds non-finite values (nan or inf); only finite points allowed")
     if n_used == 0:

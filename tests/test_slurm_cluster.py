@@ -14,15 +14,40 @@ REPO = Path(__file__).resolve().parents[1]
 HELLO_APP = REPO / "tests" / "slurm" / "hello_app.py"
 
 
+def _listeners(port: int) -> list[str]:
+    """Local addresses (hex, as in /proc/net/tcp*) of the sockets listening on ``port``."""
+    found = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        if not Path(table).exists():
+            continue
+        for line in Path(table).read_text().splitlines()[1:]:
+            local, state = line.split()[1], line.split()[3]
+            address, port_hex = local.split(":")
+            if state == "0A" and int(port_hex, 16) == port:  # 0A = LISTEN
+                found.append(address)
+    return found
+
+
+def test_daemons_listen_on_loopback_only(slurm_cluster):
+    """slurmctld and slurmd listen on their configured ports at 127.0.0.1 and nowhere else."""
+    conf = dict(
+        line.split("=", 1)
+        for line in slurm_cluster.conf.read_text().splitlines()
+        if "=" in line and not line.startswith("#")
+    )
+    for key in ("SlurmctldPort", "SlurmdPort"):
+        assert _listeners(int(conf[key])) == ["0100007F"], key  # 127.0.0.1, little-endian hex
+
+
 def test_node_matches_machine(slurm_cluster):
-    """start.sh gives the one node this machine's usable CPUs and total memory, and it is idle."""
+    """start.sh gives the one node this machine's usable CPUs and total memory, on loopback."""
     out = slurm_cluster.run("scontrol", "-o", "show", "node").stdout.strip()
     fields = dict(item.split("=", 1) for item in out.split() if "=" in item)
     mem_kib = int(re.search(r"^MemTotal:\s+(\d+) kB", Path("/proc/meminfo").read_text(), re.M)[1])
     assert len(out.splitlines()) == 1
     assert int(fields["CPUTot"]) == len(os.sched_getaffinity(0))
     assert int(fields["RealMemory"]) == mem_kib // 1024
-    assert fields["State"] == "IDLE"
+    assert fields["NodeAddr"] == "127.0.0.1"
 
 
 def test_sbatch_array_runs_both_tasks(slurm_cluster, tmp_path):
