@@ -259,8 +259,8 @@ def build_mesh(
     mesh.loops.foreach_set("vertex_index", faces.ravel())
     mesh.polygons.add(len(faces))
     mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, 3, dtype=np.int32))
-    mesh.update(calc_edges=True)
-    # Degenerate or duplicate faces are harmless for depth but may upset Blender; drop them.
+    # Also derives the edges. Degenerate or duplicate faces are harmless for depth but may upset
+    # Blender, so they are dropped.
     mesh.validate(verbose=False, clean_customdata=False)
     mesh.materials.append(material)
     return mesh

@@ -176,11 +176,8 @@ class _Pending:
 
 def _stage(job: RenderJob, index: int, run_dir: Path) -> _Pending:
     """Check a job and write its mesh and Blender-convention poses into run_dir."""
-    if not isinstance(job.key, str) or not job.key or job.key != " ".join(job.key.split()):
-        raise ValueError(
-            f"key must be a non-empty string without line breaks or surrounding/double "
-            f"whitespace, got {job.key!r}"
-        )
+    if not isinstance(job.key, str) or not job.key.strip() or len(job.key.splitlines()) != 1:
+        raise ValueError(f"key must be a non-empty one-line string, got {job.key!r}")
     vertices, faces, poses = (np.asarray(a) for a in (job.vertices, job.faces, job.poses))
     _check_mesh(vertices, faces, poses)
     if not (np.all(np.isfinite(vertices)) and np.all(np.isfinite(poses))):
@@ -320,11 +317,12 @@ def _render_blender(
         if process is not None and process.poll() is None:
             process.kill()
             process.wait()
-        if failed:
-            for job in pending:
-                job.remove()
-            for job_file in run_dir.glob("job_*.json"):
-                job_file.unlink()
+        if failed:  # keep only the log
+            for path in run_dir.iterdir():
+                if path.is_dir():
+                    shutil.rmtree(path, ignore_errors=True)
+                elif path != log:
+                    path.unlink()
         else:
             shutil.rmtree(run_dir, ignore_errors=True)
 

@@ -87,8 +87,10 @@ def farthest_points(points: np.ndarray, n: int) -> np.ndarray:
     if len(points) <= n:
         return points[np.arange(n) % len(points)]
     # Bucket height 7 was fastest on 10^4-10^5 points; fpsample needs 2**h <= len(points).
+    # It runs a third faster on float32 than on float64.
     height = min(7, int(np.log2(len(points))))
-    return points[fpsample.bucket_fps_kdline_sampling(points, n, height, start_idx=0)]
+    coords = np.ascontiguousarray(points, dtype=np.float32)
+    return points[fpsample.bucket_fps_kdline_sampling(coords, n, height, start_idx=0)]
 
 
 def walk(

@@ -92,10 +92,8 @@ def slurm_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SlurmClu
     )
     if start.returncode != 0:
         subprocess.run(["bash", str(SLURM_SCRIPTS / "stop.sh"), str(folder)], timeout=120)
-        pytest.fail(
-            f"tests/slurm/start.sh {folder} failed:\n{start.stderr}\n{cluster.log_tail()}",
-            pytrace=False,
-        )
+        # start.sh's stderr already ends with the tails of the daemons' logs.
+        pytest.fail(f"tests/slurm/start.sh {folder} failed:\n{start.stderr}", pytrace=False)
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("SLURM_CONF", str(cluster.conf))
         try:

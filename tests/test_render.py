@@ -327,3 +327,28 @@ def test_blender_crash_restarts_for_the_rest(tmp_path):
     expected = render_raycast(box.vertices, box.faces, POSES[:2], CAMERA)
     assert _agreement(results["third"][0], expected[0])[0] >= 0.99
     assert results["second"].shape == (2, CAMERA.height, CAMERA.width)
+
+
+# ---------------------------------------------------------------------------------------------
+# Benchmark helpers
+
+
+def test_bench_mesh_is_a_closed_50k_triangle_surface():
+    from nbv.bench_render import bumpy_torus
+
+    vertices, faces = bumpy_torus()
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    assert len(faces) == 50_000 and mesh.is_watertight
+    assert np.linalg.norm(vertices, axis=1).max() < 0.5
+    assert mesh.euler_number == 0  # a torus
+
+
+def test_agreement_statistics():
+    from nbv.bench_render import agreement
+
+    first = np.array([[1.0, 2.0, np.inf, 4.0], [np.inf, 1.0, 1.0, 1.0]], dtype=np.float32)
+    second = np.array([[1.0, 2.00005, 3.0, np.inf], [np.inf, 1.0, 1.001, 1.0]])
+    stats = agreement(first, second)
+    assert stats["common"] == 5 and stats["mask_mismatch"] == 2
+    assert stats["within"] == pytest.approx(4 / 5)
+    assert stats["max"] == pytest.approx(0.001, rel=1e-4)

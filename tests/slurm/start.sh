@@ -73,7 +73,8 @@ if alive "$dir/slurmctld.pid" slurmctld && alive "$dir/slurmd.pid" slurmd \
   echo "export SLURM_CONF=$conf"
   exit 0
 fi
-# One start at a time per machine, so two test sessions never pick the same free ports.
+# One start at a time per machine, so two test sessions never pick the same free ports. The
+# daemons must not inherit the lock (fd 9), or it would be held until they exit.
 exec 9>"${TMPDIR:-/tmp}/nbv-slurm-test-start.lock"
 flock 9
 # Half-started or stale: clear it away before starting fresh.
@@ -83,7 +84,7 @@ bash "$(dirname "$0")/stop.sh" "$dir"
 if ! munge -n </dev/null >/dev/null 2>&1; then
   install -d -o munge -g munge -m 0755 /run/munge
   [ -s /etc/munge/munge.key ] || die "/etc/munge/munge.key missing; reinstall munge (bash tests/slurm/install.sh)"
-  runuser -u munge -- munged --force || die "munged failed to start (see /var/log/munge/munged.log)"
+  runuser -u munge -- munged --force 9>&- || die "munged failed to start (see /var/log/munge/munged.log)"
   for _ in $(seq 50); do
     munge -n </dev/null >/dev/null 2>&1 && break
     sleep 0.1
@@ -161,8 +162,8 @@ fail() { # fail <message>: show the logs, stop what did start, and exit 1
   bash "$(dirname "$0")/stop.sh" "$dir" || true
   die "$1"
 }
-slurmctld -f "$conf" -c || fail "slurmctld failed to start (config $conf)"
-slurmd -f "$conf" -N "$node" || fail "slurmd failed to start (config $conf)"
+slurmctld -f "$conf" -c 9>&- || fail "slurmctld failed to start (config $conf)"
+slurmd -f "$conf" -N "$node" 9>&- || fail "slurmd failed to start (config $conf)"
 
 deadline=$((SECONDS + timeout_s))
 state=""

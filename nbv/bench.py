@@ -1,0 +1,268 @@
+"""``python -m nbv.bench`` (``make bench``): one table of the fast paths against plain references.
+
+Every row times the project's implementation and an independent, plain implementation of the same
+thing on the same data in the same run, and gives the ratio. The data: a synthetic chair rendered
+by ray casting from the 33 original views at 640 x 480 (full-resolution view clouds), its
+16384-point ground truth, and a 100k-point cloud from its views. The last rows compare the two
+rendering backends (``--no-render`` skips them).
+
+Targets (issue 4 and 3) are printed beside the measured times; the paper's times are in FACTS.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import ConvexHull, cKDTree
+
+from nbv import meshes, sco, sph, synthetic
+from nbv.camera import Intrinsics, backproject, viewspace_poses
+from nbv.render import render_raycast
+from nbv.samples import farthest_points
+from nbv.scores import (
+    DEFAULT_EPS,
+    coverage_bits,
+    coverage_from_bits,
+    hull_volume,
+    view_hull_vertices,
+    vig_of_state,
+)
+from nbv.viewspace import original_viewspace
+
+
+def best_time(fn: Callable[[], object], repeat: int = 5, budget: float = 3.0) -> float:
+    """Best wall time of ``fn`` in seconds over up to ``repeat`` runs (stops after ``budget`` s)."""
+    best, spent = np.inf, 0.0
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        dt = time.perf_counter() - t0
+        best, spent = min(best, dt), spent + dt
+        if spent > budget:
+            break
+    return best
+
+
+def numpy_fps(points: np.ndarray, n: int) -> np.ndarray:
+    """Reference farthest point sampling: plain numpy, O(N n), started at point 0."""
+    chosen = np.zeros(n, dtype=np.int64)
+    dist = np.full(len(points), np.inf)
+    for i in range(1, n):
+        dist = np.minimum(dist, ((points - points[chosen[i - 1]]) ** 2).sum(axis=1))
+        chosen[i] = int(np.argmax(dist))
+    return points[chosen]
+
+
+def scipy_signature(points: np.ndarray, lmax: int) -> np.ndarray:
+    """Reference signature: scipy's complex harmonics made real, ``lstsq``, then evaluation."""
+    from scipy.special import sph_harm_y
+
+    def design(theta, phi):
+        cols = []
+        for l in range(lmax + 1):  # noqa: E741
+            for m in range(-l, l + 1):
+                y = sph_harm_y(l, abs(m), theta, phi)
+                sign = (-1.0) ** m
+                if m > 0:
+                    cols.append(np.sqrt(2) * sign * y.real)
+                elif m < 0:
+                    cols.append(np.sqrt(2) * sign * y.imag)
+                else:
+                    cols.append(y.real)
+        return np.stack(cols, axis=-1)
+
+    centred = points - points.mean(axis=0)
+    r = np.linalg.norm(centred, axis=1)
+    theta = np.arccos(np.clip(centred[:, 2] / r, -1, 1))
+    phi = np.arctan2(centred[:, 1], centred[:, 0])
+    coeffs = np.linalg.lstsq(design(theta, phi), r, rcond=None)[0]
+    grid_theta, grid_phi = sph.equiangular_directions(lmax)
+    radius = design(grid_theta, grid_phi) @ coeffs
+    return radius[:, None] * sph.unit_vectors(grid_theta, grid_phi)
+
+
+def python_greedy(sets: np.ndarray, n_iter: int, exclude: tuple[int, ...]) -> list[int]:
+    """Reference greedy maximum coverage over Python sets (Algorithm 3)."""
+    elements = [set(np.flatnonzero(row).tolist()) for row in sets]
+    covered = set().union(*(elements[v] for v in exclude))
+    chosen = []
+    for _ in range(n_iter):
+        free = [v for v in range(len(elements)) if v not in chosen and v not in exclude]
+        best = max(free, key=lambda v: (len(elements[v] - covered), -v))
+        chosen.append(best)
+        covered |= elements[best]
+    return chosen
+
+
+def rng_pick(n: int, k: int, seed: int) -> np.ndarray:
+    """Sorted random subset of ``k`` of ``range(n)`` (all when ``k >= n``)."""
+    if k >= n:
+        return np.arange(n)
+    return np.sort(np.random.default_rng(seed).choice(n, k, replace=False))
+
+
+def bench_scene(seed: int = 0) -> dict:
+    """The benchmark's data: full-resolution views of a synthetic chair and its ground truth."""
+    rng = np.random.default_rng(seed)
+    entry = next(e for e in synthetic.catalogue() if e.category == "chair")
+    vertices, faces = synthetic.build(entry, seed)
+    mesh, _, _ = meshes.normalise(meshes.Mesh(vertices, faces))
+    intrinsics = Intrinsics.centred()
+    poses = viewspace_poses(original_viewspace())
+    depth = render_raycast(mesh.vertices, mesh.faces, poses, intrinsics)
+    views = [backproject(d, intrinsics, p) for d, p in zip(depth, poses, strict=True)]
+    merged = np.concatenate(views)
+    cloud = merged[rng.choice(len(merged), min(100_000, len(merged)), replace=False)]
+    return {
+        "mesh": mesh,
+        "views": views,
+        "gt": meshes.sample_surface(mesh, 16384, rng).astype(np.float64),
+        "cloud100k": cloud,
+        "poses": poses,
+        "intrinsics": intrinsics,
+    }
+
+
+def run(render: bool = True, seed: int = 0) -> list[dict]:
+    """Measure every row; returns dicts with name, ours, reference, ratio, target (seconds)."""
+    scene = bench_scene(seed)
+    views, gt, cloud = scene["views"], scene["gt"], scene["cloud100k"]
+    state = np.zeros(33, dtype=bool)
+    state[[1, 9, 17, 20, 28]] = True
+    bits = coverage_bits(views, gt, DEFAULT_EPS)
+    hulls = view_hull_vertices(views)
+    gt_vol = hull_volume(gt)
+    merged_state = np.concatenate([views[v] for v in np.flatnonzero(state)])
+    # The planner sees a start view as the dataset stores it (points_per_view = 2048).
+    start_cloud = views[1][rng_pick(len(views[1]), 2048, seed)]
+    start_hull = start_cloud[ConvexHull(start_cloud).vertices]
+    samples, normals, face_ids = sco.sample_hull(start_hull, 16384, np.random.default_rng(seed))
+    hull = sco.convex_hull(start_hull)
+    sets = sco.view_sets(samples, normals, scene["poses"], scene["intrinsics"])
+    rows = []
+
+    def row(name, ours, reference, target, note=""):
+        t_ours, t_ref = best_time(ours), best_time(reference, repeat=2, budget=10)
+        rows.append(
+            dict(
+                name=name,
+                ours=t_ours,
+                reference=t_ref,
+                ratio=t_ref / t_ours,
+                target=target,
+                note=note,
+            )
+        )
+
+    row(
+        "farthest point sampling 100k -> 1024",
+        lambda: farthest_points(cloud, 1024),
+        lambda: numpy_fps(cloud, 1024),
+        0.030,
+        "fpsample vs numpy",
+    )
+    row(
+        "signature 100k points, lmax 3",
+        lambda: sph.signature(cloud, 3),
+        lambda: scipy_signature(cloud, 3),
+        0.020,
+        "recurrences vs scipy+lstsq",
+    )
+    row(
+        "signature 100k points, lmax 10",
+        lambda: sph.signature(cloud, 10),
+        lambda: scipy_signature(cloud, 10),
+        None,
+        "recurrences vs scipy+lstsq",
+    )
+    row(
+        "coverage of a view state (5 views)",
+        lambda: coverage_from_bits(bits, state, len(gt)),
+        lambda: (cKDTree(merged_state).query(gt)[0] < DEFAULT_EPS).mean(),
+        50e-6,
+        "packed bits vs KD-tree on merged cloud",
+    )
+    row(
+        "VIG of a view state (5 views)",
+        lambda: vig_of_state(hulls, state, gt_vol),
+        lambda: ConvexHull(merged_state).volume / gt_vol,
+        0.002,
+        "per-view hull vertices vs hull of merged cloud",
+    )
+    row(
+        "view simulation, 33 views on a hull",
+        lambda: sco.view_sets(
+            samples, normals, scene["poses"], scene["intrinsics"], face_ids=face_ids
+        ),
+        lambda: sco.view_sets(
+            samples, normals, scene["poses"], scene["intrinsics"], method="raycast", hull=hull
+        ),
+        None,
+        "analytic vs ray casting",
+    )
+    row(
+        "greedy set cover, 9 of 33 views",
+        lambda: sco.greedy_max_coverage(sets, 9, (1,)),
+        lambda: python_greedy(sets, 9, (1,)),
+        0.001,
+        "packed bits vs Python sets",
+    )
+    row("whole 9-view plan (hull+sim+sets+greedy), 2048-point start view", lambda: sco.plan(
+            start_cloud, original_viewspace(), exclude=(1,), poses=scene["poses"]),
+        lambda: sco.plan(start_cloud, original_viewspace(), exclude=(1,), poses=scene["poses"],
+                         method="raycast"), 0.050, "analytic vs ray-cast simulation")  # fmt: skip
+    if render:
+        from nbv.bench_render import benchmark
+
+        r = next(iter(benchmark(n_views=12).values()))
+        blender = r["blender_s_per_view"] + r["backproject_s_per_view"]
+        raycast = r["raycast_s_per_view"] + r["backproject_s_per_view"]
+        rows.append(
+            dict(
+                name=f"render a 640x480 view + back-projection ({r['triangles']} triangles)",
+                ours=raycast,
+                reference=blender,
+                ratio=blender / raycast,
+                target=0.25,
+                note="ray casting vs Blender; the target is Blender's",
+            )
+        )
+    return rows
+
+
+def format_table(rows: list[dict]) -> str:
+    """Markdown table of :func:`run`'s rows, times in milliseconds."""
+    lines = [
+        "| what | ours (ms) | reference (ms) | speed-up | target (ms) | met | compared |",
+        "|---|---:|---:|---:|---:|:-:|---|",
+    ]
+    for r in rows:
+        target = "" if r["target"] is None else f"{r['target'] * 1e3:g}"
+        checked = r["reference"] if r["name"].startswith("render") else r["ours"]
+        met = "" if r["target"] is None else ("yes" if checked <= r["target"] else "NO")
+        lines.append(
+            f"| {r['name']} | {r['ours'] * 1e3:.3f} | {r['reference'] * 1e3:.1f} | "
+            f"{r['ratio']:.1f}x | {target} | {met} | {r['note']} |"
+        )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description="Speed of the fast paths against references.")
+    parser.add_argument("--no-render", action="store_true", help="skip the rendering rows")
+    parser.add_argument("--json", type=Path, default=None, help="also write the rows as JSON")
+    args = parser.parse_args(argv)
+    rows = run(render=not args.no_render)
+    print(format_table(rows))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(rows, indent=1))
+
+
+if __name__ == "__main__":
+    main()
