@@ -216,7 +216,7 @@ class DenseEdgeConv(nn.Module):
             edges = hs[0] if len(hs) == 1 else torch.cat(hs[::-1], dim=-1)
             pre = edges @ w[:, :-c].T + F.linear(x, w[:, -c:], layer.linear.bias).unsqueeze(2)
             hs.append(layer.activate(pre))
-        return torch.cat([h.max(dim=2).values for h in reversed(hs)] + [x], dim=-1)
+        return torch.cat([h.amax(dim=2) for h in reversed(hs)] + [x], dim=-1)
 
 
 class FeatureExtractor(nn.Module):
@@ -337,11 +337,11 @@ class PCNBV(nn.Module):
             points = self.normalize(points)
         per_point = self.features(points)
         n = per_point.shape[1]
-        tiled_global = per_point.max(dim=1, keepdim=True).values.expand(-1, n, -1)
+        tiled_global = per_point.amax(dim=1, keepdim=True).expand(-1, n, -1)
         tiled_state = view_state.to(per_point.dtype).unsqueeze(1).expand(-1, n, -1)
         x = torch.cat([per_point, tiled_global, tiled_state], dim=-1)
         x = self.convs(self.attention(x))
-        return self.head(x.max(dim=1).values)
+        return self.head(x.amax(dim=1))
 
 
 def masked_argmax(scores: Tensor, view_state: Tensor) -> Tensor:
