@@ -158,12 +158,14 @@ def configure_scene(spec: dict) -> tuple[bpy.types.Scene, bpy.types.Object, bpy.
     cycles.filter_width = 0.01
     cycles.seed = 0
     cycles.use_light_tree = False
-    # The depth sits in the colour channels: nothing may remap them.
-    scene.view_settings.view_transform = "Standard"
-    scene.view_settings.look = "None"
-    scene.view_settings.exposure = 0.0
-    scene.view_settings.gamma = 1.0
-    scene.view_settings.use_curve_mapping = False
+    # The depth sits in the colour channels. EXR files are written scene-linear whatever the view
+    # transform; a neutral one is set all the same where the colour configuration has it.
+    view = scene.view_settings
+    view.exposure, view.gamma, view.use_curve_mapping = 0.0, 1.0, False
+    try:
+        view.view_transform, view.look = "Standard", "None"
+    except TypeError:
+        pass
 
     image = render.image_settings
     image.file_format = "OPEN_EXR"
@@ -276,6 +278,8 @@ def render_view(scene: bpy.types.Scene, exr_path: str) -> np.ndarray:
     bpy.ops.render.render(write_still=True)
     image = bpy.data.images.load(exr_path, check_existing=False)
     try:
+        # Non-colour data: no colour-space conversion when the pixels are read.
+        image.colorspace_settings.is_data = True
         width, height = image.size
         expected = (scene.render.resolution_x, scene.render.resolution_y)
         if (width, height) != expected:

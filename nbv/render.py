@@ -98,18 +98,26 @@ def render_raycast(
     faces = np.asarray(faces)
     poses = np.asarray(poses, dtype=np.float64)
     _check_mesh(vertices, faces, poses)
+    depth = np.full((len(poses), intrinsics.height, intrinsics.width), np.inf, dtype=np.float32)
+    if faces.size == 0:
+        return depth
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(
         o3d.core.Tensor(np.ascontiguousarray(vertices, dtype=np.float32)),
         o3d.core.Tensor(np.ascontiguousarray(faces, dtype=np.uint32)),
     )
-    rays_cam = pixel_rays(intrinsics).reshape(-1, 3)
-    depth = np.empty((len(poses), intrinsics.height, intrinsics.width), dtype=np.float32)
-    rays = np.empty((rays_cam.shape[0], 6), dtype=np.float32)
+    # One float32 product per view gives every ray: [x, y, 1, 1] @ [[0, R^T], [c, 0]] puts the
+    # camera centre c in the first three columns and R @ [x, y, 1] in the last three.
+    pixels = np.ones((intrinsics.height * intrinsics.width, 4), dtype=np.float32)
+    pixels[:, :2] = pixel_rays(intrinsics).reshape(-1, 3)[:, :2]
+    transform = np.zeros((4, 6), dtype=np.float32)
+    rays = np.empty((len(pixels), 6), dtype=np.float32)
+    rays_tensor = o3d.core.Tensor.from_numpy(rays)  # shares memory with rays
     for i, pose in enumerate(poses):
-        rays[:, :3] = pose[:3, 3]
-        rays[:, 3:] = rays_cam @ pose[:3, :3].T
-        hit = scene.cast_rays(o3d.core.Tensor(rays), nthreads=threads)["t_hit"].numpy()
+        transform[:3, 3:] = pose[:3, :3].T
+        transform[3, :3] = pose[:3, 3]
+        np.matmul(pixels, transform, out=rays)
+        hit = scene.cast_rays(rays_tensor, nthreads=threads)["t_hit"].numpy()
         depth[i] = hit.reshape(intrinsics.height, intrinsics.width)
     return depth
 
@@ -225,6 +233,8 @@ def render_blender(
         ValueError: bad ``threads``/``device``; FileNotFoundError: ``blender`` not found.
     """
     _check_options(threads, device, blender)
+    if not BLENDER_SCRIPT.is_file():
+        raise FileNotFoundError(f"{BLENDER_SCRIPT} is missing: nbv must run from a checkout")
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
     return _render_blender(jobs, intrinsics, workdir, blender, threads, device)

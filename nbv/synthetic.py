@@ -99,7 +99,9 @@ def _z_to(direction: np.ndarray) -> np.ndarray:
     return trimesh.geometry.align_vectors([0.0, 0.0, 1.0], np.asarray(direction, float))[:3, :3]
 
 
-def _box(size: Sequence[float], center: Sequence[float], rotation: np.ndarray | None = None) -> Part:
+def _box(
+    size: Sequence[float], center: Sequence[float], rotation: np.ndarray | None = None
+) -> Part:
     """Box of edge lengths ``size`` (x, y, z) centred at ``center``, optionally rotated."""
     return trimesh.creation.box(extents=size, transform=_pose(rotation, center))
 
@@ -155,7 +157,9 @@ def _cyl(radius: float, p0: Sequence[float], p1: Sequence[float], sections: int 
     return trimesh.creation.cylinder(radius=radius, segment=[p0, p1], sections=sections)
 
 
-def _beam(p0: Sequence[float], p1: Sequence[float], width: float, depth: float | None = None) -> Part:
+def _beam(
+    p0: Sequence[float], p1: Sequence[float], width: float, depth: float | None = None
+) -> Part:
     """Box of cross-section ``width`` x ``depth`` running from ``p0`` to ``p1``."""
     p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
     d = p1 - p0
@@ -380,17 +384,37 @@ def _car(rng: np.random.Generator) -> list[Part]:
         wall_h, t = u(0.25, 0.35), 0.05
         z0, z1 = -length / 2, zc - lc / 2 - 0.05
         for s in (-1, 1):
-            parts.append(_span((s * width / 2 - t * (s > 0), y1, z0), (s * width / 2 + t * (s < 0), y1 + wall_h, z1)))
+            parts.append(
+                _span(
+                    (s * width / 2 - t * (s > 0), y1, z0),
+                    (s * width / 2 + t * (s < 0), y1 + wall_h, z1),
+                )
+            )
         parts.append(_span((-width / 2, y1, z0), (width / 2, y1 + wall_h, z0 + t)))
         parts.append(_span((-width / 2, y1, z1 - t), (width / 2, y1 + wall_h, z1)))
     if kind in (0, 4) and rng.random() < 0.4:  # rear spoiler on two posts
         zs = -length / 2 + 0.15
         h = u(0.08, 0.18)
-        parts.append(_span((-0.45 * width, y1 + h, zs - 0.12), (0.45 * width, y1 + h + 0.03, zs + 0.12)))
-        parts.extend(_symmetric([_span((0.3 * width, y1 - 0.02, zs - 0.03), (0.33 * width, y1 + h, zs + 0.03))]))
+        parts.append(
+            _span((-0.45 * width, y1 + h, zs - 0.12), (0.45 * width, y1 + h + 0.03, zs + 0.12))
+        )
+        parts.extend(
+            _symmetric(
+                [_span((0.3 * width, y1 - 0.02, zs - 0.03), (0.33 * width, y1 + h, zs + 0.03))]
+            )
+        )
     if rng.random() < 0.7:  # mirrors
         zm = zc + lc / 2 - wind * 0.7
-        parts.extend(_symmetric([_span((0.47 * width, y1 + 0.05, zm - 0.06), (0.47 * width + 0.14, y1 + 0.16, zm + 0.04))]))
+        parts.extend(
+            _symmetric(
+                [
+                    _span(
+                        (0.47 * width, y1 + 0.05, zm - 0.06),
+                        (0.47 * width + 0.14, y1 + 0.16, zm + 0.04),
+                    )
+                ]
+            )
+        )
 
     ww = u(0.18, 0.26)
     for z in (length / 2 - u(0.65, 0.95), -length / 2 + u(0.6, 0.95)):
@@ -406,7 +430,7 @@ def _bus(rng: np.random.Generator) -> list[Part]:
     height = u(4.1, 4.4) if decker else u(2.8, 3.3)
     c = _corners((-width / 2, clear, -length / 2), (width / 2, height, length / 2))
     c[[3, 7], 2] -= u(0.0, 0.35)  # raked windscreen
-    c[[2, 3, 6, 7], 0] *= u(0.93, 1.0)  # roof slightly narrower
+    c[[2, 3, 6, 7], 0] *= u(0.97, 1.0)  # roof slightly narrower
     parts = [_hexa(c)]
 
     # Window bands: dark panes standing a little proud of both sides.
@@ -419,18 +443,47 @@ def _bus(rng: np.random.Generator) -> list[Part]:
         for k in range(n):
             z0 = -length / 2 + 0.3 + k * pitch
             parts.extend(
-                _symmetric([_span((width / 2 - 0.02, y0, z0), (width / 2 + 0.03, y0 + wh, z0 + 0.88 * pitch))])
+                _symmetric(
+                    [
+                        _span(
+                            (width / 2 - 0.02, y0, z0),
+                            (width / 2 + 0.03, y0 + wh, z0 + 0.88 * pitch),
+                        )
+                    ]
+                )
             )
     # Door on the right side, windscreen and rear window.
-    parts.append(_span((width / 2 - 0.02, clear + 0.2, z_front + 0.1), (width / 2 + 0.04, height - 0.3, z_front + 1.0)))
-    ws_z = length / 2 - (c[3, 2] - c[1, 2]) * 0 + 0.02
-    parts.append(_span((-0.44 * width, 1.1, ws_z - 0.5), (0.44 * width, height - 0.25, ws_z - 0.25 + 0.3)))
-    parts.append(_span((-0.4 * width, height - 0.3 - wh, -length / 2 - 0.03), (0.4 * width, height - 0.4, -length / 2 + 0.02)))
-    parts.append(_span((-width / 2 - 0.03, clear - 0.05, length / 2 - 0.1), (width / 2 + 0.03, clear + 0.35, length / 2 + 0.12)))
+    parts.append(
+        _span(
+            (width / 2 - 0.02, clear + 0.2, z_front + 0.1),
+            (width / 2 + 0.04, height - 0.3, z_front + 1.0),
+        )
+    )
+    rake = c[1, 2] - c[3, 2]
+    ws = _corners((-0.44 * width, 1.1, -0.02), (0.44 * width, height - 0.25, 0.03))
+    ws[:, 2] += length / 2 - rake * (ws[:, 1] - clear) / (height - clear)  # follow the raked front
+    parts.append(_hexa(ws))
+    parts.append(
+        _span(
+            (-0.4 * width, height - 0.3 - wh, -length / 2 - 0.03),
+            (0.4 * width, height - 0.4, -length / 2 + 0.02),
+        )
+    )
+    parts.append(
+        _span(
+            (-width / 2 - 0.03, clear - 0.05, length / 2 - 0.1),
+            (width / 2 + 0.03, clear + 0.35, length / 2 + 0.12),
+        )
+    )
     if rng.random() < 0.5:  # roof air conditioner
         la = u(1.5, 3.0)
         za = u(-length / 4, length / 4)
-        parts.append(_span((-0.35 * width, height - 0.05, za - la / 2), (0.35 * width, height + u(0.2, 0.35), za + la / 2)))
+        parts.append(
+            _span(
+                (-0.35 * width, height - 0.05, za - la / 2),
+                (0.35 * width, height + u(0.2, 0.35), za + la / 2),
+            )
+        )
 
     ww = 0.3
     axles = [length / 2 - u(2.0, 2.6), -length / 2 + u(2.2, 3.2)]
@@ -499,9 +552,18 @@ def _chair(rng: np.random.Generator) -> list[Part]:
         r_tube = u(0.01, 0.016)
         xs = w / 2 - 0.03
         for sx in (-1, 1):
-            parts.append(_cyl(r_tube, (sx * xs, r_tube, -d / 2), (sx * xs, r_tube, d / 2 + 0.02), 12))
+            parts.append(
+                _cyl(r_tube, (sx * xs, r_tube, -d / 2), (sx * xs, r_tube, d / 2 + 0.02), 12)
+            )
             for sz in (-1, 1):
-                parts.append(_cyl(r_tube, (sx * xs, 0, sz * (d / 2 - 0.02)), (sx * xs, y_under, sz * (d / 2 - 0.05)), 12))
+                parts.append(
+                    _cyl(
+                        r_tube,
+                        (sx * xs, 0, sz * (d / 2 - 0.02)),
+                        (sx * xs, y_under, sz * (d / 2 - 0.05)),
+                        12,
+                    )
+                )
 
     if rng.random() < 0.35:  # armrests
         ya, aw = sh + u(0.18, 0.25), u(0.04, 0.08)
@@ -510,7 +572,12 @@ def _chair(rng: np.random.Generator) -> list[Part]:
         if solid:
             arm.append(_span((w / 2, sh - st, -d / 2), (w / 2 + aw, ya, 0.4 * d)))
         else:
-            arm.append(_span((w / 2 + aw / 2 - 0.012, sh - 0.01, 0.35 * d), (w / 2 + aw / 2 + 0.012, ya, 0.35 * d + 0.024)))
+            arm.append(
+                _span(
+                    (w / 2 + aw / 2 - 0.012, sh - 0.01, 0.35 * d),
+                    (w / 2 + aw / 2 + 0.012, ya, 0.35 * d + 0.024),
+                )
+            )
         parts.extend(_symmetric(arm))
     return parts
 
@@ -535,7 +602,14 @@ def _sofa(rng: np.random.Generator) -> list[Part]:
     if arms:
         arm = [_span((inner, y0, -depth / 2), (width / 2, arm_h, depth / 2))]
         if rng.random() < 0.35:  # rolled arm
-            arm.append(_cyl(arm_w * 0.6, (inner + arm_w / 2, arm_h, -depth / 2), (inner + arm_w / 2, arm_h, depth / 2), 24))
+            arm.append(
+                _cyl(
+                    arm_w * 0.6,
+                    (inner + arm_w / 2, arm_h, -depth / 2),
+                    (inner + arm_w / 2, arm_h, depth / 2),
+                    24,
+                )
+            )
         parts.extend(_symmetric(arm))
 
     n = rng.integers(1, 4)
@@ -545,9 +619,16 @@ def _sofa(rng: np.random.Generator) -> list[Part]:
     z_back = -depth / 2 + back_t
     for k in range(n):
         x0 = -inner + k * cw
-        parts.append(_span((x0 + gap, base_top, z_back + gap), (x0 + cw - gap, base_top + ct, depth / 2 + 0.02)))
+        parts.append(
+            _span(
+                (x0 + gap, base_top, z_back + gap), (x0 + cw - gap, base_top + ct, depth / 2 + 0.02)
+            )
+        )
         if rng.random() < 0.7:
-            bc = _corners((x0 + gap, base_top + ct, z_back), (x0 + cw - gap, back_h - 0.05, z_back + u(0.12, 0.18)))
+            bc = _corners(
+                (x0 + gap, base_top + ct, z_back),
+                (x0 + cw - gap, back_h - 0.05, z_back + u(0.12, 0.18)),
+            )
             bc[[2, 3, 6, 7], 2] -= 0.06
             parts.append(_hexa(bc))
 
@@ -598,23 +679,39 @@ def _table(rng: np.random.Generator) -> list[Part]:
             foot = u(0.25, 0.4)
             for k in range(4):
                 a = k * np.pi / 2 + np.pi / 4
-                parts.append(_beam((0, 0.03, 0), (foot * np.cos(a), 0.015, foot * np.sin(a)), 0.05, 0.03))
+                parts.append(
+                    _beam((0, 0.03, 0), (foot * np.cos(a), 0.015, foot * np.sin(a)), 0.05, 0.03)
+                )
     elif column:  # trestle: two end frames joined by a stretcher
         xt = wx - u(0.1, 0.25)
         pw = u(0.04, 0.08)
         for sx in (-1, 1):
             parts.append(_span((sx * xt - pw / 2, 0.06, -0.04), (sx * xt + pw / 2, y_under, 0.04)))
-            parts.append(_span((sx * xt - pw / 2, 0, -wz * 0.85), (sx * xt + pw / 2, 0.06, wz * 0.85)))
-            parts.append(_span((sx * xt - pw / 2, y_under - 0.05, -wz * 0.85), (sx * xt + pw / 2, y_under, wz * 0.85)))
+            parts.append(
+                _span((sx * xt - pw / 2, 0, -wz * 0.85), (sx * xt + pw / 2, 0.06, wz * 0.85))
+            )
+            parts.append(
+                _span(
+                    (sx * xt - pw / 2, y_under - 0.05, -wz * 0.85),
+                    (sx * xt + pw / 2, y_under, wz * 0.85),
+                )
+            )
         parts.append(_span((-xt, 0.25, -0.025), (xt, 0.3, 0.025)))
     else:
         lt, splay = u(0.03, 0.07), u(0.0, 0.04)
         rnd = rng.random() < 0.4
         ins = u(0.02, 0.08)
         if round_top:
-            pos = [(np.cos(a) * (r - ins - lt), np.sin(a) * (r - ins - lt)) for a in np.pi / 4 + np.arange(4) * np.pi / 2]
+            pos = [
+                (np.cos(a) * (r - ins - lt), np.sin(a) * (r - ins - lt))
+                for a in np.pi / 4 + np.arange(4) * np.pi / 2
+            ]
         else:
-            pos = [(sx * (wx - ins - lt / 2), sz * (wz - ins - lt / 2)) for sx in (-1, 1) for sz in (-1, 1)]
+            pos = [
+                (sx * (wx - ins - lt / 2), sz * (wz - ins - lt / 2))
+                for sx in (-1, 1)
+                for sz in (-1, 1)
+            ]
         for x, z in pos:
             s = np.array([x, z]) / np.hypot(x, z)
             foot = (x + splay * s[0], 0.0, z + splay * s[1])
@@ -654,7 +751,9 @@ def _lamp(rng: np.random.Generator) -> list[Part]:
         b = u(0.0, 0.9)
         axis = np.array([0.0, -np.cos(b), np.sin(b)])
         hs = u(0.1, 0.16)
-        parts.append(_frustum(u(0.02, 0.035), u(0.06, 0.11), joint - 0.02 * axis, joint + hs * axis, 32))
+        parts.append(
+            _frustum(u(0.02, 0.035), u(0.06, 0.11), joint - 0.02 * axis, joint + hs * axis, 32)
+        )
     elif kind == 1:
         rb, hp = u(0.12, 0.2), u(1.3, 1.8)
         rp = u(0.012, 0.02)
@@ -663,10 +762,18 @@ def _lamp(rng: np.random.Generator) -> list[Part]:
         if style == 0:
             parts.append(_cyl(rp, (0, 0, 0), (0, hp, 0), 12))
             hs = u(0.2, 0.3)
-            parts.append(_frustum(u(0.18, 0.25), u(0.12, 0.18), (0, hp - hs * 0.6, 0), (0, hp + hs * 0.4, 0), 32))
+            parts.append(
+                _frustum(
+                    u(0.18, 0.25), u(0.12, 0.18), (0, hp - hs * 0.6, 0), (0, hp + hs * 0.4, 0), 32
+                )
+            )
         elif style == 1:
             parts.append(_cyl(rp, (0, 0, 0), (0, hp, 0), 12))
-            parts.append(_frustum(u(0.04, 0.08), u(0.18, 0.28), (0, hp - 0.05, 0), (0, hp + u(0.08, 0.14), 0), 32))
+            parts.append(
+                _frustum(
+                    u(0.04, 0.08), u(0.18, 0.28), (0, hp - 0.05, 0), (0, hp + u(0.08, 0.14), 0), 32
+                )
+            )
         else:
             top = np.array([0.0, hp, -0.1])
             parts.append(_cyl(rp, (0, 0, -0.1), top, 12))
@@ -675,7 +782,9 @@ def _lamp(rng: np.random.Generator) -> list[Part]:
             mid = (top + end) / 2 + np.array([0.0, 0.15, 0.0])
             parts.append(_cyl(rp, top, mid, 12))
             parts.append(_cyl(rp, mid, end, 12))
-            parts.append(_frustum(0.03, u(0.15, 0.22), end, end - np.array([0.0, u(0.15, 0.22), 0.0]), 32))
+            parts.append(
+                _frustum(0.03, u(0.15, 0.22), end, end - np.array([0.0, u(0.15, 0.22), 0.0]), 32)
+            )
     else:
         rv, hv = u(0.06, 0.12), u(0.15, 0.3)
         parts.append(_cyl(rv * 1.1, (0, 0, 0), (0, 0.02, 0), 32))
@@ -727,7 +836,9 @@ def _vessel(rng: np.random.Generator) -> list[Part]:
                 parts.append(_cyl(u(0.015, 0.03), (0, hd, zf), (0, y + u(0.04, 0.1), zf), 20))
         mast_top = y + u(0.1, 0.25)
         parts.append(_cyl(0.005, (0, y, zh + 0.02), (0, mast_top, zh + 0.02), 8))
-        parts.append(_span((-0.05, mast_top - 0.04, zh + 0.015), (0.05, mast_top - 0.03, zh + 0.025)))
+        parts.append(
+            _span((-0.05, mast_top - 0.04, zh + 0.015), (0.05, mast_top - 0.03, zh + 0.025))
+        )
         if rng.random() < 0.35:  # deck cargo
             for k in range(rng.integers(1, 4)):
                 z0 = zh + 0.2 + 0.07 * k
@@ -740,15 +851,42 @@ def _vessel(rng: np.random.Generator) -> list[Part]:
         boom_y = hd + u(0.04, 0.08)
         chord = u(0.25, 0.4)
         parts.append(_cyl(0.005, (0, boom_y, zm), (0, boom_y, zm - chord), 8))
-        parts.append(_slab((0, boom_y + 0.01, zm - 0.008), chord, (0, top - 0.03, zm - 0.008), 0.02, (0.004, 0.003), thick_dir=(1, 0, 0)))
+        parts.append(
+            _slab(
+                (0, boom_y + 0.01, zm - 0.008),
+                chord,
+                (0, top - 0.03, zm - 0.008),
+                0.02,
+                (0.004, 0.003),
+                thick_dir=(1, 0, 0),
+            )
+        )
         if rng.random() < 0.6:  # jib from the bow to the mast head
             z_bow = 0.45
-            parts.append(_slab((0, hd + 0.02, z_bow), z_bow - zm - 0.03, (0, top - 0.05, zm + 0.03), 0.01, (0.004, 0.003), thick_dir=(1, 0, 0)))
+            parts.append(
+                _slab(
+                    (0, hd + 0.02, z_bow),
+                    z_bow - zm - 0.03,
+                    (0, top - 0.05, zm + 0.03),
+                    0.01,
+                    (0.004, 0.003),
+                    thick_dir=(1, 0, 0),
+                )
+            )
         zc = zm - u(0.08, 0.15)
         lc = u(0.15, 0.25)
         parts.append(_span((-beam * 0.3, hd, zc - lc), (beam * 0.3, hd + u(0.03, 0.05), zc)))
         if rng.random() < 0.6:  # keel fin
-            parts.append(_slab((0, 0.01, zm + 0.05), 0.15, (0, -u(0.1, 0.2), zm), 0.1, (0.012, 0.01), thick_dir=(1, 0, 0)))
+            parts.append(
+                _slab(
+                    (0, 0.01, zm + 0.05),
+                    0.15,
+                    (0, -u(0.1, 0.2), zm),
+                    0.1,
+                    (0.012, 0.01),
+                    thick_dir=(1, 0, 0),
+                )
+            )
     else:
         zc, lc = u(-0.1, 0.1), u(0.2, 0.35)
         hc = u(0.05, 0.09)
@@ -773,7 +911,14 @@ def _cabinet(rng: np.random.Generator) -> list[Part]:
     if feet == 1:
         for sx in (-1, 1):
             for sz in (-1, 1):
-                parts.append(_cyl(0.025, (sx * (w / 2 - 0.05), 0, sz * (d / 2 - 0.05)), (sx * (w / 2 - 0.05), y0, sz * (d / 2 - 0.05)), 12))
+                parts.append(
+                    _cyl(
+                        0.025,
+                        (sx * (w / 2 - 0.05), 0, sz * (d / 2 - 0.05)),
+                        (sx * (w / 2 - 0.05), y0, sz * (d / 2 - 0.05)),
+                        12,
+                    )
+                )
     elif feet == 2:
         parts.append(_span((-w / 2 + 0.03, 0, -d / 2 + 0.03), (w / 2 - 0.03, y0, d / 2 - 0.03)))
 
@@ -806,7 +951,12 @@ def _cabinet(rng: np.random.Generator) -> list[Part]:
         hy = yb - min(0.08, (yb - ya) / 3) if hx == (x0 + x1) / 2 else (ya + yb) / 2
         if handle_bar:
             lx, ly = (0.08, 0.015) if hx == (x0 + x1) / 2 else (0.015, 0.1)
-            out.append(_span((hx - lx / 2, hy - ly / 2, front + ft), (hx + lx / 2, hy + ly / 2, front + ft + 0.02)))
+            out.append(
+                _span(
+                    (hx - lx / 2, hy - ly / 2, front + ft),
+                    (hx + lx / 2, hy + ly / 2, front + ft + 0.02),
+                )
+            )
         else:
             out.append(_cyl(0.01, (hx, hy, front + ft), (hx, hy, front + ft + 0.025), 12))
         return out
@@ -849,10 +999,19 @@ def _bed(rng: np.random.Generator) -> list[Part]:
     if legs:
         for sx in (-1, 1):
             for sz in (-1, 1):
-                parts.append(_span((sx * (w / 2 - 0.03) - 0.03, 0, sz * (length / 2 - 0.03) - 0.03), (sx * (w / 2 - 0.03) + 0.03, leg_h, sz * (length / 2 - 0.03) + 0.03)))
+                parts.append(
+                    _span(
+                        (sx * (w / 2 - 0.03) - 0.03, 0, sz * (length / 2 - 0.03) - 0.03),
+                        (sx * (w / 2 - 0.03) + 0.03, leg_h, sz * (length / 2 - 0.03) + 0.03),
+                    )
+                )
     mt = u(0.15, 0.25)
     m_top = frame_top + mt
-    parts.append(_span((-w / 2 + 0.02, frame_top, -length / 2 + 0.02), (w / 2 - 0.02, m_top, length / 2 - 0.02)))
+    parts.append(
+        _span(
+            (-w / 2 + 0.02, frame_top, -length / 2 + 0.02), (w / 2 - 0.02, m_top, length / 2 - 0.02)
+        )
+    )
 
     bt = u(0.04, 0.08)
     z_head = -length / 2 - bt / 2
@@ -862,9 +1021,14 @@ def _bed(rng: np.random.Generator) -> list[Part]:
         if rng.random() < 0.6:
             return [_span((-w / 2 - ov, 0, z - bt / 2), (w / 2 + ov, top, z + bt / 2))]
         post_r = u(0.025, 0.045)
-        out = [_cyl(post_r, (s * (w / 2 + ov), 0, z), (s * (w / 2 + ov), top + 0.04, z), 16) for s in (-1, 1)]
+        out = [
+            _cyl(post_r, (s * (w / 2 + ov), 0, z), (s * (w / 2 + ov), top + 0.04, z), 16)
+            for s in (-1, 1)
+        ]
         out.append(_span((-w / 2 - ov, top - 0.08, z - bt / 3), (w / 2 + ov, top, z + bt / 3)))
-        out.append(_span((-w / 2 - ov, frame_top, z - bt / 3), (w / 2 + ov, frame_top + 0.06, z + bt / 3)))
+        out.append(
+            _span((-w / 2 - ov, frame_top, z - bt / 3), (w / 2 + ov, frame_top + 0.06, z + bt / 3))
+        )
         for x in np.linspace(-w / 2, w / 2, rng.integers(4, 10) + 2)[1:-1]:
             out.append(_cyl(0.012, (x, frame_top + 0.06, z), (x, top - 0.08, z), 8))
         return out
@@ -880,8 +1044,15 @@ def _bed(rng: np.random.Generator) -> list[Part]:
         zs = (-length / 2 - bt / 2, length / 2 + bt / 2)
         for sx in (-1, 1):
             for z in zs:
-                parts.append(_cyl(0.035, (sx * (w / 2 + ov), 0, z), (sx * (w / 2 + ov), top, z), 12))
-            parts.append(_span((sx * (w / 2 + ov) - 0.03, top - 0.06, zs[0]), (sx * (w / 2 + ov) + 0.03, top, zs[1])))
+                parts.append(
+                    _cyl(0.035, (sx * (w / 2 + ov), 0, z), (sx * (w / 2 + ov), top, z), 12)
+                )
+            parts.append(
+                _span(
+                    (sx * (w / 2 + ov) - 0.03, top - 0.06, zs[0]),
+                    (sx * (w / 2 + ov) + 0.03, top, zs[1]),
+                )
+            )
         for z in zs:
             parts.append(_span((-w / 2 - ov, top - 0.06, z - 0.03), (w / 2 + ov, top, z + 0.03)))
 
@@ -892,7 +1063,12 @@ def _bed(rng: np.random.Generator) -> list[Part]:
         parts.append(_ellipsoid((xc, m_top + 0.05, -length / 2 + 0.25), (pw * 0.42, 0.07, 0.17)))
     if rng.random() < 0.5:  # blanket over the lower part, hanging over the sides
         zb = length / 2 - 0.01 - (0.02 if footboard else -0.04)
-        parts.append(_span((-w / 2 - 0.02, frame_top - u(0.0, 0.15), -length / 2 + length * u(0.3, 0.45)), (w / 2 + 0.02, m_top + 0.02, zb)))
+        parts.append(
+            _span(
+                (-w / 2 - 0.02, frame_top - u(0.0, 0.15), -length / 2 + length * u(0.3, 0.45)),
+                (w / 2 + 0.02, m_top + 0.02, zb),
+            )
+        )
     return parts
 
 
@@ -927,7 +1103,10 @@ def _bookshelf(rng: np.random.Generator) -> list[Part]:
         floor = ys[i] + (t / 2 if i > 0 else 0.0)
         ceil = ys[i + 1] - (t / 2 if i + 1 < n_shelves else 0.0)
         for c in range(columns):
-            x0, x1 = xs[c] + (t / 2 if c > 0 else 0.0), xs[c + 1] - (t / 2 if c + 1 < columns else 0.0)
+            x0, x1 = (
+                xs[c] + (t / 2 if c > 0 else 0.0),
+                xs[c + 1] - (t / 2 if c + 1 < columns else 0.0),
+            )
             x = x0 + u(0.0, 0.2) * (x1 - x0)
             stop = x0 + (x1 - x0) * min(1.0, u(0.5, 1.3) * fill)
             while x < stop:
@@ -962,22 +1141,37 @@ def _bench(rng: np.random.Generator) -> list[Part]:
     if legs == 0:
         for sx in (-1, 1):
             for sz in (-1, 1):
-                parts.append(_span((sx * xl - lt / 2, 0, sz * (d / 2 - 0.03) - lt / 2), (sx * xl + lt / 2, y_under, sz * (d / 2 - 0.03) + lt / 2)))
+                parts.append(
+                    _span(
+                        (sx * xl - lt / 2, 0, sz * (d / 2 - 0.03) - lt / 2),
+                        (sx * xl + lt / 2, y_under, sz * (d / 2 - 0.03) + lt / 2),
+                    )
+                )
         if rng.random() < 0.5:
             parts.append(_span((-xl, 0.12, -0.015), (xl, 0.15, 0.015)))
     elif legs == 1:
         for sx in (-1, 1):
-            parts.append(_span((sx * xl - lt / 2, 0, -d / 2 + 0.02), (sx * xl + lt / 2, y_under, d / 2 - 0.02)))
+            parts.append(
+                _span(
+                    (sx * xl - lt / 2, 0, -d / 2 + 0.02), (sx * xl + lt / 2, y_under, d / 2 - 0.02)
+                )
+            )
     else:
         for sx in (-1, 1):
             for sz in (-1, 1):
-                parts.append(_beam((sx * xl, 0, sz * d / 2), (sx * xl, y_under, sz * 0.1 * d), lt, 0.03))
-            parts.append(_span((sx * xl - 0.02, y_under - 0.05, -d / 2), (sx * xl + 0.02, y_under, d / 2)))
+                parts.append(
+                    _beam((sx * xl, 0, sz * d / 2), (sx * xl, y_under, sz * 0.1 * d), lt, 0.03)
+                )
+            parts.append(
+                _span((sx * xl - 0.02, y_under - 0.05, -d / 2), (sx * xl + 0.02, y_under, d / 2))
+            )
 
     if rng.random() < 0.5:  # backrest on posts rising from the rear
         tilt = u(0.05, 0.3)
         bh = u(0.3, 0.45)
-        back: list[Part] = [_span((sx * xl - 0.025, -0.05, -0.02), (sx * xl + 0.025, bh, 0.02)) for sx in (-1, 1)]
+        back: list[Part] = [
+            _span((sx * xl - 0.025, -0.05, -0.02), (sx * xl + 0.025, bh, 0.02)) for sx in (-1, 1)
+        ]
         for y in np.linspace(0.06, bh - 0.06, rng.integers(2, 4)):
             back.append(_span((-w / 2, y - 0.04, 0.02), (w / 2, y + 0.04, 0.045)))
         for p in back:
@@ -986,8 +1180,12 @@ def _bench(rng: np.random.Generator) -> list[Part]:
         if rng.random() < 0.5:  # armrests
             ya = sh + u(0.18, 0.25)
             for sx in (-1, 1):
-                parts.append(_span((sx * xl - 0.025, ya - 0.03, -d / 2), (sx * xl + 0.025, ya, d / 2)))
-                parts.append(_span((sx * xl - 0.015, sh, d / 2 - 0.05), (sx * xl + 0.015, ya, d / 2 - 0.02)))
+                parts.append(
+                    _span((sx * xl - 0.025, ya - 0.03, -d / 2), (sx * xl + 0.025, ya, d / 2))
+                )
+                parts.append(
+                    _span((sx * xl - 0.015, sh, d / 2 - 0.05), (sx * xl + 0.015, ya, d / 2 - 0.02))
+                )
     return parts
 
 
@@ -1013,8 +1211,9 @@ def _guitar(rng: np.random.Generator) -> list[Part]:
         depth = u(0.04, 0.05)
         parts.append(_cyl(r1, (0, r1, -depth / 2), (0, r1, depth / 2), 40))
         parts.append(_cyl(r1 * 0.75, (0, r1 * 1.9, -depth / 2), (0, r1 * 1.9, depth / 2), 40))
-        for s, lift in ((-1, u(0.4, 0.8)), (1, u(0.9, 1.3))):  # two horns, one longer
-            parts.append(_cyl(r1 * 0.35, (s * r1 * 0.55, r1 * (1.9 + lift * 0.5), -depth / 2), (s * r1 * 0.55, r1 * (1.9 + lift * 0.5), depth / 2), 24))
+        for s, lift in ((-1, u(0.1, 0.35)), (1, u(0.4, 0.7))):  # two horns, one longer
+            c = (s * r1 * 0.5, r1 * (1.9 + lift), 0.0)
+            parts.append(_ellipsoid(c, (0.24 * r1, 0.5 * r1, depth / 2)))
         for k in range(rng.integers(1, 4)):  # pickups
             y = r1 * (1.1 + 0.35 * k)
             parts.append(_span((-0.045, y, depth / 2), (0.045, y + 0.02, depth / 2 + 0.008)))
@@ -1055,7 +1254,18 @@ def _motorbike(rng: np.random.Generator) -> list[Part]:
     bar_w, bar_up = u(0.3, 0.4), u(0.0, 0.12)
     bar = head + (0, bar_up + 0.04, -0.05)
     parts.append(_cyl(0.012, (-bar_w, bar[1], bar[2] - 0.05), (bar_w, bar[1], bar[2] - 0.05), 12))
-    parts.extend(_symmetric([_cyl(0.018, (bar_w - 0.1, bar[1], bar[2] - 0.05), (bar_w + 0.01, bar[1], bar[2] - 0.05), 12)]))
+    parts.extend(
+        _symmetric(
+            [
+                _cyl(
+                    0.018,
+                    (bar_w - 0.1, bar[1], bar[2] - 0.05),
+                    (bar_w + 0.01, bar[1], bar[2] - 0.05),
+                    12,
+                )
+            ]
+        )
+    )
     parts.append(_cyl(0.015, head + (0, 0.04, -0.02), bar + (0, 0, -0.05), 8))
 
     pivot = np.array([0.0, rw + 0.12, zr + u(0.45, 0.55)])
@@ -1069,13 +1279,17 @@ def _motorbike(rng: np.random.Generator) -> list[Part]:
     tank_z = head[2] - u(0.2, 0.28)
     parts.append(_ellipsoid((0, seat_y + 0.05, tank_z), (0.14, 0.1, u(0.18, 0.24))))
     seat_len = u(0.45, 0.6)
-    seat = _corners((-0.13, seat_y - 0.06, tank_z - 0.15 - seat_len), (0.13, seat_y + 0.02, tank_z - 0.15))
+    seat = _corners(
+        (-0.13, seat_y - 0.06, tank_z - 0.15 - seat_len), (0.13, seat_y + 0.02, tank_z - 0.15)
+    )
     seat[[2, 6], 1] += u(0.0, 0.08)  # raised pillion
     parts.append(_hexa(seat))
     parts.append(_span((-0.1, seat_y - 0.15, zr - 0.05), (0.1, seat_y - 0.06, tank_z - 0.15)))
     # Exhausts.
     for s in (1,) if rng.random() < 0.6 else (-1, 1):
-        parts.append(_cyl(0.035, (s * 0.15, rw - 0.05, ez), (s * 0.18, rw + 0.1, zr + u(0.0, 0.15)), 16))
+        parts.append(
+            _cyl(0.035, (s * 0.15, rw - 0.05, ez), (s * 0.18, rw + 0.1, zr + u(0.0, 0.15)), 16)
+        )
     if rng.random() < 0.5:  # front fairing
         f = _corners((-0.2, head[1] - 0.25, head[2] - 0.05), (0.2, head[1] + 0.15, head[2] + 0.15))
         f[[2, 3, 6, 7], 0] *= 0.5
@@ -1114,7 +1328,9 @@ def _skateboard(rng: np.random.Generator) -> list[Part]:
         parts.append(_span((-0.03, y_deck - 0.012, z - 0.04), (0.03, y_deck, z + 0.04)))
         parts.append(_beam((0, y_deck - 0.012, z), (0, rwh, z), 0.03))
         parts.append(_cyl(0.02, (-w / 2 + ww * 0.6, rwh, z), (w / 2 - ww * 0.6, rwh, z), 12))
-        parts.extend(_symmetric([_cyl(rwh, (w / 2 - ww * 0.8, rwh, z), (w / 2 - ww * 0.8 + ww, rwh, z), 24)]))
+        parts.extend(
+            _symmetric([_cyl(rwh, (w / 2 - ww * 0.8, rwh, z), (w / 2 - ww * 0.8 + ww, rwh, z), 24)])
+        )
     return parts
 
 
@@ -1126,9 +1342,18 @@ def _pistol(rng: np.random.Generator) -> list[Part]:
     z0 = -ls / 2
     if kind == 0:
         parts.append(_span((-ws / 2, 0, z0), (ws / 2, hs, z0 + ls)))
-        parts.append(_span((-ws / 2 * 0.9, -0.018, z0 + 0.02), (ws / 2 * 0.9, 0.0, z0 + ls * u(0.7, 0.95))))
+        parts.append(
+            _span((-ws / 2 * 0.9, -0.018, z0 + 0.02), (ws / 2 * 0.9, 0.0, z0 + ls * u(0.7, 0.95)))
+        )
         if rng.random() < 0.3:  # silencer
-            parts.append(_cyl(u(0.014, 0.02), (0, hs * 0.6, z0 + ls - 0.01), (0, hs * 0.6, z0 + ls + u(0.08, 0.15)), 24))
+            parts.append(
+                _cyl(
+                    u(0.014, 0.02),
+                    (0, hs * 0.6, z0 + ls - 0.01),
+                    (0, hs * 0.6, z0 + ls + u(0.08, 0.15)),
+                    24,
+                )
+            )
         else:
             parts.append(_cyl(0.006, (0, hs * 0.6, z0 + ls), (0, hs * 0.6, z0 + ls + 0.006), 12))
         top = hs
@@ -1136,9 +1361,15 @@ def _pistol(rng: np.random.Generator) -> list[Part]:
         barrel = u(0.1, 0.18)
         rb = u(0.008, 0.012)
         parts.append(_span((-ws / 2 * 0.8, -0.015, z0), (ws / 2 * 0.8, hs * 0.9, z0 + 0.09)))
-        parts.append(_cyl(u(0.018, 0.024), (0, hs * 0.45, z0 + 0.02), (0, hs * 0.45, z0 + 0.07), 24))
+        parts.append(
+            _cyl(u(0.018, 0.024), (0, hs * 0.45, z0 + 0.02), (0, hs * 0.45, z0 + 0.07), 24)
+        )
         parts.append(_cyl(rb, (0, hs * 0.75, z0 + 0.07), (0, hs * 0.75, z0 + 0.07 + barrel), 20))
-        parts.append(_span((-0.004, hs * 0.75, z0 + 0.07), (0.004, hs * 0.75 + rb + 0.004, z0 + 0.07 + barrel)))
+        parts.append(
+            _span(
+                (-0.004, hs * 0.75, z0 + 0.07), (0.004, hs * 0.75 + rb + 0.004, z0 + 0.07 + barrel)
+            )
+        )
         top = hs * 0.9
     parts.append(_span((-0.002, top, z0 + ls * 0.93), (0.002, top + 0.008, z0 + ls * 0.98)))
     parts.append(_span((-0.006, top, z0 + 0.005), (0.006, top + 0.007, z0 + 0.015)))
@@ -1150,14 +1381,18 @@ def _pistol(rng: np.random.Generator) -> list[Part]:
     grip.apply_transform(_pose(_rot("x", ga), (0, 0.005, z0 + gw + 0.01)))
     parts.append(grip)
     if kind == 0 and rng.random() < 0.25:  # extended magazine
-        mag = _span((-ws / 2 * 0.8, -gl - u(0.02, 0.05), -gw * 0.8), (ws / 2 * 0.8, -gl + 0.01, -gw * 0.1))
+        mag = _span(
+            (-ws / 2 * 0.8, -gl - u(0.02, 0.05), -gw * 0.8), (ws / 2 * 0.8, -gl + 0.01, -gw * 0.1)
+        )
         mag.apply_transform(_pose(_rot("x", ga), (0, 0.005, z0 + gw + 0.01)))
         parts.append(mag)
     # Trigger guard (a ring below the frame) and trigger.
     rg = u(0.018, 0.024)
     zg = z0 + gw + 0.01 + rg * 0.9
     parts.append(_annulus(rg - 0.004, rg, (0, -0.012, zg), (1, 0, 0), 0.006))
-    parts.append(_beam((0, -0.012, zg - rg * 0.2), (0, -0.012 - rg * 0.7, zg - rg * 0.05), 0.005, 0.006))
+    parts.append(
+        _beam((0, -0.012, zg - rg * 0.2), (0, -0.012 - rg * 0.7, zg - rg * 0.05), 0.005, 0.006)
+    )
     if rng.random() < 0.5:  # hammer
         parts.append(_beam((0, top - 0.005, z0 + 0.005), (0, top + 0.012, z0 - 0.01), 0.008))
     return parts
@@ -1206,7 +1441,9 @@ def make_model(category: str, rng: np.random.Generator) -> tuple[np.ndarray, np.
     parts = _BUILDERS[category](rng)
     counts = np.cumsum([0] + [len(p.vertices) for p in parts])
     vertices = np.concatenate([np.asarray(p.vertices, np.float64) for p in parts])
-    faces = np.concatenate([np.asarray(p.faces, np.int64) + o for p, o in zip(parts, counts, strict=False)])
+    faces = np.concatenate(
+        [np.asarray(p.faces, np.int64) + o for p, o in zip(parts, counts, strict=False)]
+    )
     lo, hi = vertices.min(axis=0), vertices.max(axis=0)
     vertices = (vertices - (lo + hi) / 2) / np.linalg.norm(hi - lo)
     return vertices, faces
@@ -1231,9 +1468,7 @@ def _check_counts(counts: dict[str, int] | None) -> dict[str, int]:
                 f"unknown key {key!r} in synthetic counts; allowed: {', '.join(DEFAULT_COUNTS)}"
             )
         if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 0:
-            raise ValueError(
-                f"synthetic counts[{key!r}] = {value!r}; allowed: an integer >= 0"
-            )
+            raise ValueError(f"synthetic counts[{key!r}] = {value!r}; allowed: an integer >= 0")
         merged[key] = int(value)
     return merged
 
@@ -1288,14 +1523,14 @@ def build(entry: SyntheticEntry, seed: int) -> tuple[np.ndarray, np.ndarray]:
 # Contact sheet.
 # --------------------------------------------------------------------------------------------
 
-_TINTS = {"train": np.array([0.55, 0.7, 0.95]), "unseen": np.array([0.98, 0.72, 0.45])}
+_TINTS = {"train": (0.55, 0.7, 0.95), "unseen": (0.98, 0.72, 0.45)}
 
 
 def render_tile(
     vertices: np.ndarray,
     faces: np.ndarray,
     size: int,
-    tint: np.ndarray = _TINTS["train"],
+    tint: tuple[float, float, float] = _TINTS["train"],
     azimuth: float = 35.0,
     elevation: float = 25.0,
 ) -> np.ndarray:
@@ -1323,8 +1558,12 @@ def render_tile(
     a, e = np.deg2rad(azimuth), np.deg2rad(elevation)
     eye = 1.6 * np.array([np.cos(e) * np.sin(a), np.sin(e), np.cos(e) * np.cos(a)])
     rays = scene.create_rays_pinhole(
-        fov_deg=38.0, center=[0.0, 0.0, 0.0], eye=eye.tolist(), up=[0.0, 1.0, 0.0],
-        width_px=size * ss, height_px=size * ss,
+        fov_deg=38.0,
+        center=[0.0, 0.0, 0.0],
+        eye=eye.tolist(),
+        up=[0.0, 1.0, 0.0],
+        width_px=size * ss,
+        height_px=size * ss,
     )
     hit = scene.cast_rays(rays)
     t = hit["t_hit"].numpy()
@@ -1339,14 +1578,15 @@ def render_tile(
     diffuse = np.clip(normals @ light, 0.0, 1.0)
     facing = np.clip(-np.sum(normals * dirs, axis=-1), 0.0, 1.0)
     shade = 0.18 + 0.6 * diffuse + 0.22 * facing
-    rgb = np.where(mask[..., None], shade[..., None] * tint, 1.0)
+    rgb = np.where(mask[..., None], shade[..., None] * np.asarray(tint), 1.0)
     # Dark outlines where depth jumps, so that thin parts and overlaps read clearly.
     depth = np.where(mask, t, 10.0)
     jump = np.zeros_like(mask)
     jump[1:, :] |= np.abs(np.diff(depth, axis=0)) > 0.05
     jump[:, 1:] |= np.abs(np.diff(depth, axis=1)) > 0.05
     rgb[jump] *= 0.35
-    rgb = rgb.reshape(size, ss, size, ss, 3).mean(axis=(1, 3))
+    # Open3D's pinhole rays come out rotated by 180 degrees against the usual image layout.
+    rgb = rgb[::-1, ::-1].reshape(size, ss, size, ss, 3).mean(axis=(1, 3))
     return (np.clip(rgb, 0.0, 1.0) * 255).round().astype(np.uint8)
 
 
@@ -1376,7 +1616,9 @@ def preview(
     for row, category in enumerate(CATEGORIES):
         group = "train" if category in TRAIN_CATEGORIES else "unseen"
         y = row * tile
-        draw.text((8, y + tile // 2), f"{category}\n({group})", fill=(0, 0, 0), font=font, anchor="lm")
+        draw.text(
+            (8, y + tile // 2), f"{category}\n({group})", fill=(0, 0, 0), font=font, anchor="lm"
+        )
         for col in range(per_category):
             v, f = make_model(category, model_rng(category, col, seed))
             x = label_width + col * tile

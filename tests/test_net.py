@@ -21,6 +21,7 @@ from nbv.net import (
     knn_indices,
     load_checkpoint,
     masked_argmax,
+    max_over,
     save_checkpoint,
 )
 
@@ -182,6 +183,17 @@ def test_knn_always_includes_self_with_duplicates() -> None:
     idx = knn_indices(x, 2)
     for i in range(8):
         assert i in idx[0, i].tolist()
+
+
+def test_max_over_same_values_and_gradient_to_the_max() -> None:
+    x = torch.tensor([[[1.0, 5.0], [3.0, 2.0], [0.0, 7.0]]], requires_grad=True)
+    with torch.no_grad():
+        plain = max_over(x, 1)
+    out = max_over(x, 1)
+    assert torch.equal(plain, out.detach())
+    assert out.tolist() == [[3.0, 7.0]]
+    out.sum().backward()
+    assert x.grad.tolist() == [[[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]]
 
 
 def reference_dense_block(block: DenseEdgeConv, x: torch.Tensor) -> torch.Tensor:
@@ -373,6 +385,15 @@ def test_forward_rejects_bad_shapes(
         model(torch.zeros(points_shape), torch.zeros(state_shape))
 
 
+def test_forward_rejects_wrong_dtype() -> None:
+    with pytest.raises(ValueError, match="points must be torch.float32 .* got torch.float64"):
+        tiny()(torch.zeros(1, 8, 3, dtype=torch.float64), torch.zeros(1, 7))
+    model = tiny().double()
+    assert model(torch.zeros(1, 8, 3, dtype=torch.float64), torch.zeros(1, 7)).dtype == (
+        torch.float64
+    )
+
+
 def test_forward_rejects_non_finite_points() -> None:
     points = torch.zeros(1, 8, 3)
     points[0, 3, 1] = float("nan")
@@ -438,7 +459,7 @@ def test_save_checkpoint_rejects_unreadable_extra(tmp_path: Path) -> None:
 
 def test_load_checkpoint_errors_name_the_file(tmp_path: Path) -> None:
     missing = tmp_path / "missing.pt"
-    with pytest.raises(CheckpointError, match=f"{missing}.*does not exist"):
+    with pytest.raises(CheckpointError, match=f"{missing} does not exist or is not a file"):
         load_checkpoint(missing)
 
     corrupt = tmp_path / "corrupt.pt"

@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -224,7 +225,10 @@ def test_blender_agrees_with_raycast_and_streams(tmp_path):
     assert isinstance(results["broken"], RenderError) and "face indices" in str(results["broken"])
     assert not any(tmp_path.iterdir())
 
-    ((_, odd_depth),) = render([odd], ODD_CAMERA, workdir=tmp_path)
+    # Without a workdir a temporary one is made and removed.
+    before = set(Path(tempfile.gettempdir()).glob("nbv-render-*"))
+    ((_, odd_depth),) = render([odd], ODD_CAMERA)
+    assert set(Path(tempfile.gettempdir()).glob("nbv-render-*")) <= before
     results["parts-odd-camera"] = odd_depth
     for key, depth in results.items():
         if key == "broken":

@@ -1,0 +1,224 @@
+"""The evaluation: every selected method on every selected model, viewspace and start view.
+
+Order of work: the settings are already valid (:class:`nbv.eval.config.EvalSettings`); the
+datasets are opened (and ``mesh_dir`` prepared) and checked against the viewspaces and start
+views; the network checkpoints are loaded, a method whose checkpoint is missing or unusable is
+skipped with the reason; then every episode runs under one progress bar, the methods first,
+the disturbance checks after. :func:`run` also writes the outputs (:mod:`nbv.eval.report`) and
+the plots (:mod:`nbv.eval.plots`).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import nbv.dataset
+from nbv.dataset.reader import Dataset
+from nbv.eval.config import NETWORK_INPUTS, EvalSettings
+from nbv.eval.disturb import CHECK_METHODS, disturbed
+from nbv.eval.prepare import prepare_meshes
+from nbv.eval.protocol import Context, EpisodeRecord, episode_rng, make_policy, run_record
+from nbv.policies import NetworkPolicy
+from nbv.synthetic import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
+
+
+class EvalDataError(ValueError):
+    """A dataset the evaluation cannot use; the message names the folder and the setting."""
+
+
+@dataclass
+class DatasetInfo:
+    """One evaluated dataset.
+
+    Attributes:
+        name: ``unseen``, ``test`` or ``meshes``.
+        path: its folder.
+        keys: the evaluated models.
+        failures: ``(key, reason)`` of models the dataset could not produce.
+        flat: models whose ground truth has no hull volume (their VIG is undefined: NaN).
+    """
+
+    name: str
+    path: Path
+    keys: list[str]
+    failures: list[tuple[str, str]] = field(default_factory=list)
+    flat: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Evaluation:
+    """Everything the report needs.
+
+    Attributes:
+        settings: the settings it ran with.
+        records: every episode, the methods' and the checks'.
+        skipped: method -> why it did not run.
+        datasets: the evaluated datasets.
+        seconds: wall time of the episodes.
+    """
+
+    settings: EvalSettings
+    records: list[EpisodeRecord]
+    skipped: dict[str, str]
+    datasets: list[DatasetInfo]
+    seconds: float
+
+
+def _spread(keys: list[str], categories: list[str]) -> list[str]:
+    """Keys reordered round-robin over their categories, so a ``limit`` takes every category."""
+    by_cat: dict[str, list[str]] = {}
+    for key, cat in zip(keys, categories, strict=True):
+        by_cat.setdefault(cat, []).append(key)
+    out = []
+    for i in range(max((len(v) for v in by_cat.values()), default=0)):
+        out += [v[i] for v in by_cat.values() if i < len(v)]
+    return out
+
+
+def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
+    """Open (or prepare) each selected dataset and pick its models.
+
+    Raises:
+        EvalDataError: a missing or empty dataset, a viewspace it lacks, a start view outside
+            a viewspace, or viewspaces of different sizes.
+    """
+    out = []
+    for name in settings.datasets:
+        failures: list[tuple[str, str]] = []
+        if name == "meshes":
+            path, failures = prepare_meshes(
+                Path(settings.mesh_dir), settings.prepare, settings.progress
+            )
+        else:
+            path = Path(settings.data_dir)
+        try:
+            ds = nbv.dataset.open(path)
+        except ValueError as err:
+            raise EvalDataError(f"dataset={name} (data_dir={str(path)!r}): {err}") from None
+        if name == "meshes":
+            keys = ds.keys()
+        else:
+            wanted = UNSEEN_CATEGORIES if name == "unseen" else TRAIN_CATEGORIES
+            keys = [k for k in ds.keys(split="test") if ds.index[k][1] in wanted]
+        if not keys:
+            raise EvalDataError(
+                f"dataset={name}: {path} holds no models of the {name} categories in split "
+                f"'test' (categories there: {ds.categories})"
+            )
+        keys = _spread(keys, [ds.index[k][1] for k in keys])[: settings.limit]
+        for vs in settings.viewspaces:
+            if vs not in ds.viewspaces:
+                raise EvalDataError(
+                    f"viewspace={vs}: {path} has no such viewspace; it has "
+                    f"{', '.join(ds.viewspaces)}"
+                )
+            n = len(ds.viewspaces[vs])
+            bad = [s for s in settings.start_views if s >= n]
+            if bad:
+                raise EvalDataError(f"start_views {bad} are outside viewspace {vs} (0..{n - 1})")
+        failures += [f for f in ds.failures if f not in failures]
+        out.append((DatasetInfo(name, path, keys, failures), ds))
+    sizes = {len(ds.viewspaces[vs]) for _, ds in out for vs in settings.viewspaces}
+    if len(sizes) > 1:
+        raise EvalDataError(f"the viewspaces have different numbers of views {sorted(sizes)}")
+    return out
+
+
+def load_networks(
+    settings: EvalSettings, n_views: int
+) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
+    """The selected network methods' checkpoints: (method -> policy, method -> skip reason)."""
+    from nbv.net import CheckpointError
+
+    networks, skipped = {}, {}
+    for method, needed in NETWORK_INPUTS.items():
+        if method not in settings.methods:
+            continue
+        path = settings.checkpoints[method]
+        try:
+            policy = NetworkPolicy.from_checkpoint(path, n_views=n_views)
+        except CheckpointError as err:
+            skipped[method] = str(err)
+            continue
+        if policy.input != needed:
+            skipped[method] = f"checkpoint {path} holds a network on {policy.input}, not {needed}"
+            continue
+        networks[method] = policy
+    return networks, skipped
+
+
+def _jobs(settings: EvalSettings, runnable: list[str]) -> list[tuple[str, str | None, str, int]]:
+    """(method, check, viewspace, start view) of the episodes to run on every model."""
+    jobs = [
+        (m, None, vs, start)
+        for vs in settings.viewspaces
+        for m in runnable
+        for start in settings.start_views
+    ]
+    for vs in settings.disturb_viewspaces:
+        for check in settings.checks:
+            jobs += [
+                (m, check, vs, start)
+                for m in CHECK_METHODS[check]
+                if m in runnable
+                for start in settings.check_start_views
+            ]
+    return jobs
+
+
+def evaluate(settings: EvalSettings) -> Evaluation:
+    """Run every episode of the settings (see the module docstring)."""
+    from tqdm import tqdm
+
+    opened = open_datasets(settings)
+    n_views = len(opened[0][1].viewspaces[settings.viewspaces[0]])
+    networks, skipped = load_networks(settings, n_views)
+    if settings.threads:
+        import torch
+
+        torch.set_num_threads(settings.threads)
+    runnable = [m for m in settings.methods if m not in skipped]
+    jobs = _jobs(settings, runnable)
+    total = sum(len(info.keys) for info, _ in opened) * len(jobs)
+    records: list[EpisodeRecord] = []
+    bar = tqdm(total=total, desc="episodes", unit="ep", disable=not settings.progress)
+    t0 = time.perf_counter()
+    for info, ds in opened:
+        eps = float(ds.attrs["eps"])
+        ctx = Context(networks, settings.hull, ds.intrinsics, eps, settings.n_views)
+        for key in info.keys:
+            model = ds.model(key, viewspaces=settings.viewspaces)
+            if not model.gt_hull_volume > 0:
+                info.flat.append(key)
+            for method, check, vs, start in jobs:
+                rng = episode_rng(settings.seed, method, check or "", key, vs, start)
+                policy = make_policy(method, ctx, rng)
+                if check is not None:
+                    policy = disturbed(check, policy, rng, settings.disturb_radius)
+                records.append(
+                    run_record(model, vs, start, method, policy, info.name, settings.n_views, check)
+                )
+                bar.update()
+    bar.close()
+    return Evaluation(settings, records, skipped, [info for info, _ in opened],
+                      time.perf_counter() - t0)  # fmt: skip
+
+
+def run(settings: EvalSettings) -> Path:
+    """Evaluate, then write results.json, summary.csv, report.md and the plots.
+
+    Returns:
+        The output folder.
+    """
+    from nbv.eval.report import write_outputs
+
+    evaluation = evaluate(settings)
+    Path(settings.out_dir).mkdir(parents=True, exist_ok=True)
+    if settings.plots:
+        from nbv.eval.plots import draw_all
+
+        draw_all(evaluation)
+    write_outputs(evaluation)
+    return settings.out_dir
