@@ -49,6 +49,22 @@ def _cloud_or_origin(cloud: np.ndarray) -> np.ndarray:
     return cloud if len(cloud) else np.zeros((1, 3), dtype=np.float32)
 
 
+_NO_SPREAD = "every point at one place (the views saw nothing): no signature"
+
+
+def _has_spread(cloud: np.ndarray) -> bool:
+    """A radius function needs a point away from the centroid."""
+    return bool(len(cloud)) and bool(np.ptp(cloud, axis=0).max() > 0)
+
+
+def _signature(cloud: np.ndarray, lmax: int, notes: list[str]) -> np.ndarray:
+    """The spherical signature, or all zeros (every radius 0) for a cloud without spread."""
+    if _has_spread(cloud):
+        return signature(cloud, lmax)
+    notes.append(_NO_SPREAD + "; zeros used")
+    return np.zeros((4 * (lmax + 1) ** 2, 3), dtype=np.float32)
+
+
 @dataclass
 class RandomPolicy:
     """A uniformly random unvisited view, from an explicit generator."""
@@ -122,7 +138,7 @@ class NetworkPolicy:
         """The network input for a cloud: (n_points, 3) or the (4 (lmax+1)^2, 3) signature."""
         cloud = _cloud_or_origin(cloud)
         if self.input == "signature":
-            return signature(cloud, self.lmax)
+            return _signature(cloud, self.lmax, self.notes)
         return farthest_points(cloud, self.n_points)
 
     def decide(
@@ -237,7 +253,10 @@ class HullSCOPolicy:
         cloud = np.asarray(_cloud_or_origin(cloud), dtype=np.float64)
         t0 = time.perf_counter()
         if self.sph:
-            cloud = sco.sph_hull_points(cloud, self.lmax)
+            if _has_spread(cloud):
+                cloud = sco.sph_hull_points(cloud, self.lmax)
+            else:
+                self.notes.append(_NO_SPREAD + "; planned on the cloud itself")
             _record(self.timings, "signature", time.perf_counter() - t0)
 
         def run(points: np.ndarray) -> sco.Plan:

@@ -7,7 +7,8 @@ from pathlib import Path
 import trimesh
 
 from nbv.camera import Intrinsics
-from nbv.dataset.generate import Settings
+from nbv.dataset.generate import Settings, generate
+from nbv.samples import SampleSettings, write_samples
 
 SMALL_CAMERA = Intrinsics.centred(64, 48, 48.0)
 
@@ -40,3 +41,31 @@ def small_settings(tmp_path: Path, **overrides) -> Settings:
     )
     base.update(overrides)
     return Settings(**base)
+
+
+#: A very small PCNBV (the same sizes as conf/model/tiny.yaml).
+TINY_NET = dict(
+    k=4, growth=4, dense_layers=2, blocks=2, first_channels=8, attention_channels=8,
+    conv_channels=[32], fc_channels=[32],
+)  # fmt: skip
+
+
+def make_train_dataset(out: Path) -> Path:
+    """One synthetic model per training category, ray cast at 48 x 36, with coverage samples."""
+    settings = Settings(
+        out_dir=out,
+        counts={"train": 1, "valid": 0, "test": 0, "unseen": 0},
+        intrinsics=Intrinsics.centred(48, 36, 36.0),
+        n_gt=1024,
+        points_per_view=64,
+        backend="raycast",
+        progress=False,
+    )
+    summary = generate(settings)
+    assert summary.produced == 8
+    write_samples(
+        summary.shard_file,
+        SampleSettings(trajectories=2, steps=4, n_points=64, lmax=2, scores=("coverage",)),
+        progress=False,
+    )
+    return out

@@ -11,43 +11,19 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from datagen import TINY_NET, make_train_dataset
 
-from nbv.camera import Intrinsics
-from nbv.dataset.generate import Settings, generate
 from nbv.net import CheckpointError, load_checkpoint
-from nbv.samples import SampleSettings, write_samples
 from train.config import TrainConfigError, TrainSettings
 from train.loop import run
 from train.metrics import best_view_hits, spearman
 
 ROOT = Path(__file__).resolve().parents[1]
-TINY_NET = dict(
-    k=4, growth=4, dense_layers=2, blocks=2, first_channels=8, attention_channels=8,
-    conv_channels=[32], fc_channels=[32],
-)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
 def tiny_dataset(tmp_path_factory) -> Path:
-    """One synthetic model per training category, ray cast at 48 x 36, with samples."""
-    out = tmp_path_factory.mktemp("train") / "data"
-    settings = Settings(
-        out_dir=out,
-        counts={"train": 1, "valid": 0, "test": 0, "unseen": 0},
-        intrinsics=Intrinsics.centred(48, 36, 36.0),
-        n_gt=1024,
-        points_per_view=64,
-        backend="raycast",
-        progress=False,
-    )
-    summary = generate(settings)
-    assert summary.produced == 8
-    write_samples(
-        summary.shard_file,
-        SampleSettings(trajectories=2, steps=4, n_points=64, lmax=2, scores=("coverage",)),
-        progress=False,
-    )
-    return out
+    return make_train_dataset(tmp_path_factory.mktemp("train") / "data")
 
 
 def tiny_settings(dataset: Path, out: Path, **kw) -> TrainSettings:

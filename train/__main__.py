@@ -6,8 +6,10 @@ model=pcnbv,pcnbv_sph`` (add ``hydra/launcher=slurm`` to run it as a SLURM job a
 
 import json
 import sys
+from pathlib import Path
 
 import hydra
+from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig
 
 from train.config import settings_from_config
@@ -19,6 +21,10 @@ def main(cfg: DictConfig) -> None:
 
     try:
         settings = settings_from_config(cfg)
+        # Point hydra's job folder at the run folder, so `train.summary <sweep dir>` finds it.
+        job_dir = Path(HydraConfig.get().runtime.output_dir)
+        job_dir.mkdir(parents=True, exist_ok=True)
+        (job_dir / "run.json").write_text(json.dumps({"out_dir": str(settings.out_dir.resolve())}))
         result = run(settings)
     except ValueError as err:  # bad settings, missing samples, unusable checkpoints
         print(f"train: {err}", file=sys.stderr)

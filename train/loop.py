@@ -177,6 +177,8 @@ def run(settings: TrainSettings) -> dict:
     out_dir = settings.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
     first_epoch, best_auc = _resume(out_dir, settings, identity, model, optimizer, scheduler)
+    plain = {**_plain_settings(settings), "held_out": settings.held_out}
+    (out_dir / "settings.json").write_text(json.dumps(plain, indent=1))
 
     reference_file = out_dir / "reference.json"
     if not reference_file.exists():

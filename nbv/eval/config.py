@@ -93,7 +93,7 @@ class EvalSettings:
         _allowed("dataset", self.datasets, DATASETS)
         _allowed("viewspace", self.viewspaces, VIEWSPACES)
         _allowed("disturb.checks", self.checks, CHECKS, empty_ok=True)
-        _allowed("disturb.viewspace", self.disturb_viewspaces, self.viewspaces, empty_ok=True)
+        _allowed("disturb.viewspace", self.disturb_viewspaces, VIEWSPACES, empty_ok=True)
         _allowed("hull.simulation", (self.hull.simulation,), SIMULATIONS)
         _allowed("prepare.backend", (self.prepare.backend,), BACKENDS)
         missing = sorted(set(NETWORK_INPUTS) & set(self.methods) - set(self.checkpoints))
@@ -125,7 +125,7 @@ class EvalSettings:
         for key, value, ok, allowed in checks:
             if not ok:
                 raise EvalConfigError(f"{key}={value!r}: must be {allowed}")
-        if self.checks and self.disturb_viewspaces and not self.check_start_views:
+        if self.checks and self.check_viewspaces and not self.check_start_views:
             raise EvalConfigError(
                 f"disturb.start_views={list(self.disturb_start_views)}: none of them is in "
                 f"start_views={list(self.start_views)}; the checks compare with the undisturbed "
@@ -133,6 +133,11 @@ class EvalSettings:
             )
         if self.mesh_dir is not None and not Path(self.mesh_dir).is_dir():
             raise EvalConfigError(f"mesh_dir={str(self.mesh_dir)!r}: no such folder")
+
+    @property
+    def check_viewspaces(self) -> tuple[str, ...]:
+        """The viewspaces of the disturbance checks: ``disturb_viewspaces`` also evaluated."""
+        return tuple(v for v in self.disturb_viewspaces if v in self.viewspaces)
 
     @property
     def check_start_views(self) -> tuple[int, ...]:

@@ -10,6 +10,7 @@ the plots (:mod:`nbv.eval.plots`).
 
 from __future__ import annotations
 
+import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -103,9 +104,16 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
             wanted = UNSEEN_CATEGORIES if name == "unseen" else TRAIN_CATEGORIES
             keys = [k for k in ds.keys(split="test") if ds.index[k][1] in wanted]
         if not keys:
+            which = (
+                "models"
+                if name == "meshes"
+                else (
+                    f"test-split models of the 8 {'unseen' if name == 'unseen' else 'training'} "
+                    "categories"
+                )
+            )
             raise EvalDataError(
-                f"dataset={name}: {path} holds no models of the {name} categories in split "
-                f"'test' (categories there: {ds.categories})"
+                f"dataset={name}: {path} holds no {which} (categories there: {ds.categories})"
             )
         keys = _spread(keys, [ds.index[k][1] for k in keys])[: settings.limit]
         for vs in settings.viewspaces:
@@ -157,7 +165,7 @@ def _jobs(settings: EvalSettings, runnable: list[str]) -> list[tuple[str, str | 
         for m in runnable
         for start in settings.start_views
     ]
-    for vs in settings.disturb_viewspaces:
+    for vs in settings.check_viewspaces:
         for check in settings.checks:
             jobs += [
                 (m, check, vs, start)
@@ -175,6 +183,8 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     opened = open_datasets(settings)
     n_views = len(opened[0][1].viewspaces[settings.viewspaces[0]])
     networks, skipped = load_networks(settings, n_views)
+    for method, reason in skipped.items():
+        print(f"nbv.eval: skipping {method}: {reason}", file=sys.stderr)
     if settings.threads:
         import torch
 

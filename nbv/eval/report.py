@@ -321,7 +321,14 @@ def report_markdown(evaluation) -> str:
 
     lines += ["", "## Mean coverage after each view", ""]
     lines += _curve_tables(g, datasets, viewspaces, s.n_views, "coverage")
-    lines += ["", "## Mean VIG after each view", ""]
+    lines += [
+        "",
+        "## Mean VIG after each view",
+        "",
+        "VIG = hull volume of the views' points / hull volume of the ground-truth samples; it "
+        "can pass 1 a little, since the samples' hull lies slightly inside the surface the "
+        "views capture. Models with a flat ground truth are left out (their VIG is undefined).",
+    ]
     lines += _curve_tables(g, datasets, viewspaces, s.n_views, "vig")
     lines += ["", "## AUC per category", ""]
     lines += _category_tables(records, datasets, viewspaces)

@@ -1,0 +1,318 @@
+"""The evaluator end to end on a tiny dataset: outputs, skipped methods, disturbance checks,
+the timing table, mesh folders (a flat mesh among them), and refused configurations."""
+
+from __future__ import annotations
+
+import csv
+import json
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from datagen import SMALL_CAMERA, write_meshes
+from test_policies import make_tiny_dataset, save_tiny_checkpoint
+
+from nbv.episodes import auc
+from nbv.eval.config import (
+    METHODS,
+    EvalConfigError,
+    EvalSettings,
+    HullSettings,
+    PrepareSettings,
+    settings_from_config,
+)
+from nbv.eval.disturb import auc_changes, permuted_state, random_ball
+from nbv.eval.evaluate import EvalDataError, evaluate, run
+from nbv.eval.prepare import prepare_meshes
+from nbv.eval.protocol import episode_rng
+from nbv.eval.report import groups
+from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
+
+ROOT = Path(__file__).resolve().parents[1]
+STARTS = (1, 10, 24)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> dict[str, Path]:
+    tmp = tmp_path_factory.mktemp("eval")
+    return {
+        "data": make_tiny_dataset(tmp / "data"),
+        "pcnbv": save_tiny_checkpoint(tmp / "pcnbv.pt", "points"),
+        "pcnbv_sph": save_tiny_checkpoint(tmp / "pcnbv_sph.pt", "signature"),
+    }
+
+
+def tiny_settings(tiny: dict[str, Path], out: Path, **kw) -> EvalSettings:
+    base = dict(
+        out_dir=out,
+        data_dir=tiny["data"],
+        start_views=STARTS,
+        disturb_start_views=(1, 24),
+        checkpoints={"pcnbv": str(tiny["pcnbv"]), "pcnbv_sph": str(tiny["pcnbv_sph"])},
+        hull=HullSettings(n_samp=2048),
+        progress=False,
+    )
+    base.update(kw)
+    return EvalSettings(**base)
+
+
+@pytest.fixture(scope="module")
+def full_run(tiny, tmp_path_factory):
+    """Every method, both viewspaces, every check, outputs and plots."""
+    out = tmp_path_factory.mktemp("run") / "out"
+    run(tiny_settings(tiny, out))
+    return out
+
+
+def test_full_run_writes_every_output(full_run):
+    names = {p.name for p in full_run.iterdir()}
+    assert {"results.json", "summary.csv", "report.md"} <= names
+    pngs = ("coverage_by_view.png", "vig_by_view.png", "disturbance.png", "reconstruction.png")
+    for png in pngs:
+        assert (full_run / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png
+    data = json.loads((full_run / "results.json").read_text())
+    episodes = data["episodes"]
+    plain = [e for e in episodes if e["check"] is None]
+    # 2 models x 2 viewspaces x 8 methods x 3 starts, then the checks on 2 starts of original:
+    # 2 networks x 2 checks + the random hull = 5 x 2 models x 2 starts.
+    assert len(plain) == 2 * 2 * 8 * 3
+    assert len(episodes) - len(plain) == 5 * 2 * 2
+    assert data["skipped"] == {}
+    for e in episodes:
+        assert len(e["views"]) == len(e["coverage"]) == len(e["vig"]) == 10
+        assert e["views"][0] == e["start"] and len(set(e["views"])) == 10
+        assert e["auc"] == pytest.approx(auc(np.array(e["coverage"])))
+        assert e["timings"]["total"] == pytest.approx(sum(e["decision_times"]))
+    report = (full_run / "report.md").read_text()
+    for section in ("## AUC", "Mean coverage after each view", "Mean VIG", "AUC per category",
+                    "Replanning", "Disturbance checks", "Timing per reconstruction",
+                    "paper / ours", "The paper's claims", "![disturbance.png]"):  # fmt: skip
+        assert section in report, section
+    with open(full_run / "summary.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 2 * 8 + 5  # (viewspace, method) pairs, then the checks
+    by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
+    random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
+    assert float(by[("original", "random", "")]["auc"]) == pytest.approx(
+        np.mean([e["auc"] for e in random_original]), abs=1e-6
+    )
+    assert float(by[("original", "random", "")]["coverage_2"]) == pytest.approx(
+        np.mean([e["coverage"][1] for e in random_original]), abs=1e-6
+    )
+
+
+def test_oracle_leads_at_the_second_view_in_the_run(full_run):
+    episodes = json.loads((full_run / "results.json").read_text())["episodes"]
+    oracle = {
+        (e["viewspace"], e["key"], e["start"]): e["coverage"][1]
+        for e in episodes
+        if e["method"] == "oracle"
+    }
+    for e in episodes:
+        assert e["coverage"][1] <= oracle[(e["viewspace"], e["key"], e["start"])] + 1e-12
+
+
+def test_auc_of_a_known_curve_and_group_means(tiny, tmp_path):
+    assert auc(np.linspace(0.1, 1.0, 10)) == pytest.approx(0.5)
+    ev = evaluate(tiny_settings(tiny, tmp_path, methods=("random",), viewspaces=("original",),
+                                checks=()))  # fmt: skip
+    curves = np.array([r.coverage for r in ev.records])
+    expected = (curves[:, :9].sum(axis=1) + 0.5 * curves[:, 9]) / 10
+    assert [r.auc for r in ev.records] == pytest.approx(expected.tolist())
+    g = groups(ev.records)[("unseen", "original", "random", None)]
+    assert g["n"] == 2 * len(STARTS) and g["auc"] == pytest.approx(expected.mean())
+    np.testing.assert_allclose(g["coverage"], curves.mean(axis=0))
+
+
+def test_seeded_runs_repeat_and_seeds_matter(tiny, tmp_path):
+    kw = dict(methods=("random", "hull_sco_probes"), viewspaces=("permuted",), checks=())
+    a = evaluate(tiny_settings(tiny, tmp_path / "a", **kw)).records
+    b = evaluate(tiny_settings(tiny, tmp_path / "b", **kw)).records
+    c = evaluate(tiny_settings(tiny, tmp_path / "c", seed=1, **kw)).records
+    assert [r.views for r in a] == [r.views for r in b]
+    assert [r.views for r in a] != [r.views for r in c]
+    assert episode_rng(0, "random", "k", 3).random() == episode_rng(0, "random", "k", 3).random()
+
+
+def test_missing_checkpoint_is_skipped_and_the_rest_runs(tiny, tmp_path):
+    missing = tmp_path / "nowhere" / "best.pt"
+    settings = tiny_settings(
+        tiny, tmp_path / "out", methods=("random", "pcnbv", "pcnbv_sph", "hull_sco"),
+        viewspaces=("original",), start_views=(1,), disturb_start_views=(1,),
+        checkpoints={"pcnbv": str(missing), "pcnbv_sph": str(tiny["pcnbv"])}, plots=False,
+    )  # fmt: skip
+    run(settings)
+    data = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert set(data["skipped"]) == {"pcnbv", "pcnbv_sph"}
+    assert str(missing) in data["skipped"]["pcnbv"]
+    assert "not signature" in data["skipped"]["pcnbv_sph"]  # a points network given for sph
+    assert {e["method"] for e in data["episodes"]} == {"random", "hull_sco"}
+    assert {e["check"] for e in data["episodes"]} == {None, "random_hull"}
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "Skipped methods" in report and str(missing) in report
+
+
+def test_disturbances(full_run, tiny, tmp_path):
+    rng = np.random.default_rng(0)
+    ball = random_ball(5000, 0.5, rng)
+    assert ball.shape == (5000, 3) and np.linalg.norm(ball, axis=1).max() <= 0.5
+    # Uniform in the ball: a quarter... of the volume, (1/2)^3 = 1/8, lies within radius 0.25.
+    assert np.mean(np.linalg.norm(ball, axis=1) < 0.25) == pytest.approx(1 / 8, abs=0.02)
+    np.testing.assert_array_equal(random_ball(10, 0.5, np.random.default_rng(3)),
+                                  random_ball(10, 0.5, np.random.default_rng(3)))  # fmt: skip
+    state = np.zeros(33, bool)
+    state[[2, 5, 9]] = True
+    shown = permuted_state(state, rng)
+    assert shown.sum() == 3 and shown.dtype == bool
+    data = json.loads((full_run / "results.json").read_text())
+    checks = {(e["check"], e["method"]) for e in data["episodes"] if e["check"]}
+    assert checks == {("random_cloud", "pcnbv"), ("random_cloud", "pcnbv_sph"),
+                      ("permuted_state", "pcnbv"), ("permuted_state", "pcnbv_sph"),
+                      ("random_hull", "hull_sco")}  # fmt: skip
+    ev = evaluate(tiny_settings(tiny, tmp_path, methods=("hull_sco",), viewspaces=("original",)))
+    rows = auc_changes(ev.records)
+    assert len(rows) == 1 and rows[0]["check"] == "random_hull" and rows[0]["n"] == 2 * 2
+    plain = {(r.key, r.start): r.auc for r in ev.records if r.check is None}
+    dist = [(r.key, r.start, r.auc) for r in ev.records if r.check]
+    assert rows[0]["change"] == pytest.approx(np.mean([a - plain[(k, s)] for k, s, a in dist]))
+
+
+def test_timing_table_and_paper_ratios(full_run, tiny, tmp_path):
+    ev = evaluate(tiny_settings(tiny, tmp_path, methods=("pcnbv", "hull_sco", "hull_sco_replan"),
+                                viewspaces=("original",), checks=()))  # fmt: skip
+    table = timing_table(ev.records)
+    assert table["pcnbv"]["network"] > 0 and table["pcnbv"]["simulation"] == 0
+    assert table["hull_sco"]["simulation"] > 0 and table["hull_sco"]["network"] == 0
+    for m in table:
+        parts = sum(table[m][c] for c in ("sampling", "network", "hull", "simulation", "set_cover"))
+        assert parts <= table[m]["total"] + 1e-9
+        assert table[m]["online"] == pytest.approx(table[m]["total"] - table[m]["simulation"])
+    ratios = paper_ratios(table)
+    assert set(ratios) == {"pcnbv", "hull_sco"}
+    assert ratios["hull_sco"]["set_cover"] == pytest.approx(
+        PAPER_TIMES["hull_sco"]["set_cover"] / table["hull_sco"]["set_cover"]
+    )
+
+
+def flat_square(path: Path) -> None:
+    """A flat mesh (zero thickness, like woody.obj): its ground truth has no hull volume."""
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], dtype=float)
+    trimesh.Trimesh(vertices, [[0, 1, 2], [0, 2, 3]], process=False).export(path)
+
+
+def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_path):
+    folder = write_meshes(tmp_path / "meshes", bad=True)
+    flat_square(folder / "flat.ply")
+    prep = PrepareSettings(dir=tmp_path / "prepared", width=SMALL_CAMERA.width,
+                           height=SMALL_CAMERA.height, focal=SMALL_CAMERA.fx, n_gt=1000,
+                           points_per_view=50)  # fmt: skip
+    path, failures = prepare_meshes(folder, prep, progress=False)
+    assert [k for k, _ in failures] == ["broken"]
+    shard = next(path.glob("shard-*.h5"))
+    stamp = shard.stat().st_mtime_ns
+    assert prepare_meshes(folder, prep, progress=False)[0] == path
+    assert shard.stat().st_mtime_ns == stamp  # reused, not rendered again
+    settings = tiny_settings(
+        tiny, tmp_path / "out", datasets=("meshes",), mesh_dir=folder, prepare=prep,
+        methods=("random", "pcnbv_sph", "hull_sco", "hull_sco_sph"), viewspaces=("original",),
+        start_views=(1, 30), checks=(), plots=False,
+    )  # fmt: skip
+    run(settings)
+    data = json.loads((tmp_path / "out" / "results.json").read_text())
+    flat = [e for e in data["episodes"] if e["key"] == "flat"]
+    assert flat and all(v is None for e in flat for v in e["vig"])
+    assert all(0 <= c <= 1 for e in flat for c in e["coverage"])
+    box = [e for e in data["episodes"] if e["key"] == "box"]
+    assert all(v is not None for e in box for v in e["vig"])
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert "flat ground truth" in report and "flat" in report and "broken" in report
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        (dict(methods=["random", "magic"]), "methods: unknown 'magic'; allowed: random, oracle"),
+        (dict(viewspace="sideways"), "viewspace: unknown 'sideways'; allowed: original, permuted"),
+        (dict(dataset="shapenet"), "dataset: unknown 'shapenet'; allowed: unseen, test, meshes"),
+        (dict(dataset="meshes"), "mesh_dir"),
+        (dict(disturb={"checks": ["noise"], "viewspace": ["original"], "radius": 0.5}),
+         "disturb.checks: unknown 'noise'"),
+        (dict(hull={"simulation": "guess"}), "hull.simulation: unknown 'guess'"),
+        (dict(n_views=1), "n_views=1"),
+        (dict(colour="red"), "unknown keys ['colour']"),
+        (dict(checkpoints={"pcnbv": "a.pt", "dqn": "b.pt"}), "checkpoints: unknown ['dqn']"),
+    ],
+)  # fmt: skip
+def test_bad_config_is_refused(override, message):
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose("eval", overrides=["run=x"])
+    from omegaconf import OmegaConf
+
+    c = OmegaConf.to_container(cfg)
+    c.update(override)
+    with pytest.raises(EvalConfigError) as err:
+        settings_from_config(c)
+    assert message in str(err.value)
+
+
+def test_default_config_composes_to_the_documented_defaults():
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose("eval", overrides=["run=x"])
+    s = settings_from_config(cfg)
+    assert s.methods == METHODS and s.datasets == ("unseen",)
+    assert s.viewspaces == ("original", "permuted") and s.start_views == (
+        1,
+        3,
+        7,
+        10,
+        15,
+        24,
+        27,
+        30,
+    )
+    assert s.out_dir == Path("outputs/eval/x")
+    assert s.checkpoints["pcnbv"] == "outputs/train/pcnbv_coverage_fold0/best.pt"
+    assert s.checkpoints["pcnbv_sph"] == "outputs/train/pcnbv_sph_coverage_fold0/best.pt"
+    assert s.check_start_views == (1, 7, 15, 27)
+    with_meshes = compose_with(["mesh_dir=" + str(ROOT / "tests")])
+    assert with_meshes.datasets == ("unseen", "meshes")
+
+
+def compose_with(overrides: list[str]) -> EvalSettings:
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
+        return settings_from_config(compose("eval", overrides=["run=x", *overrides]))
+
+
+def test_missing_dataset_and_bad_start_view_stop_before_any_episode(tiny, tmp_path):
+    with pytest.raises(EvalDataError, match="make dataset"):
+        evaluate(tiny_settings(tiny, tmp_path, data_dir=tmp_path / "none"))
+    with pytest.raises(EvalDataError, match=r"start_views \[40\]"):
+        evaluate(tiny_settings(tiny, tmp_path, start_views=(1, 40)))
+    with pytest.raises(EvalDataError, match="8 training categories"):
+        evaluate(tiny_settings(tiny, tmp_path, datasets=("test",)))
+
+
+def test_cli_refuses_a_bad_method_with_one_line(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-m", "nbv.eval", "methods=[random,magic]", f"out_root={tmp_path}"],
+        cwd=ROOT, capture_output=True, text=True,
+    )  # fmt: skip
+    assert done.returncode == 2
+    assert "methods: unknown 'magic'; allowed: random, oracle, pcnbv" in done.stderr
+    assert not list(tmp_path.rglob("results.json"))
+
+
+def test_settings_are_replaceable_and_validated_on_replace(tiny, tmp_path):
+    settings = tiny_settings(tiny, tmp_path)
+    with pytest.raises(EvalConfigError, match="disturb.start_views"):
+        replace(settings, disturb_start_views=(2,))

@@ -1,0 +1,278 @@
+"""The view-selection policies on a tiny dataset: valid episodes, the oracle as upper reference
+at the second view, seeding, agreement with direct calls of the planner, no ground truth read."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+from datagen import SMALL_CAMERA
+
+import nbv.dataset
+from nbv import sco
+from nbv.dataset.generate import Settings, generate
+from nbv.episodes import DEFAULT_START_VIEWS, EpisodeState, run_episode
+from nbv.policies import (
+    HullSCOPolicy,
+    HullSCOReplanPolicy,
+    NetworkPolicy,
+    OraclePolicy,
+    RandomPolicy,
+    thicken,
+)
+
+#: A PCNBV small enough to run in milliseconds (the sizes of tests/test_train.py).
+TINY_NET = dict(
+    k=4, growth=4, dense_layers=2, blocks=2, first_channels=8, attention_channels=8,
+    conv_channels=[32], fc_channels=[32],
+)  # fmt: skip
+
+
+def make_tiny_dataset(out: Path, models: int = 2) -> Path:
+    """The first ``models`` synthetic models of the unseen categories (split test), ray cast
+    with a 64 x 48 camera, 1000 ground-truth points, 50 stored points a view."""
+    summary = generate(
+        Settings(
+            out_dir=out,
+            counts={"train": 0, "valid": 0, "test": 0, "unseen": 1},
+            limit=models,
+            intrinsics=SMALL_CAMERA,
+            n_gt=1000,
+            points_per_view=50,
+            backend="raycast",
+            progress=False,
+        )
+    )
+    assert summary.produced == models
+    return out
+
+
+def save_tiny_checkpoint(path: Path, input: str = "points", seed: int = 0) -> Path:
+    """An untrained tiny PCNBV saved the way training saves one (``extra``: input, lmax,
+    eval_points)."""
+    import torch
+
+    from nbv.net import PCNBV, PCNBVConfig, save_checkpoint
+
+    torch.manual_seed(seed)
+    net = PCNBV(PCNBVConfig(n_views=33, **TINY_NET)).eval()
+    save_checkpoint(path, net, {"input": input, "lmax": 2, "eval_points": 64})
+    return path
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    return nbv.dataset.open(make_tiny_dataset(tmp_path_factory.mktemp("policies") / "data"))
+
+
+@pytest.fixture(scope="module")
+def model(dataset):
+    return dataset.model(dataset.keys()[0])
+
+
+@pytest.fixture(scope="module")
+def networks(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("nets")
+    return {
+        name: NetworkPolicy.from_checkpoint(save_tiny_checkpoint(tmp / f"{name}.pt", name), 33)
+        for name in ("points", "signature")
+    }
+
+
+def all_policies(networks, seed: int = 0) -> dict:
+    """One policy of every kind, seeded (the small camera of the dataset for the planners)."""
+    rng = np.random.default_rng
+    hull = dict(intrinsics=SMALL_CAMERA, n_samp=2048)
+    return {
+        "random": RandomPolicy(rng(seed)),
+        "oracle": OraclePolicy(),
+        "pcnbv": networks["points"].fresh(),
+        "pcnbv_sph": networks["signature"].fresh(),
+        "hull_sco": HullSCOPolicy(rng(seed), **hull),
+        "hull_sco_sph": HullSCOPolicy(rng(seed), sph=True, lmax=2, **hull),
+        "hull_sco_probes": HullSCOPolicy(rng(seed), probes=3, **hull),
+        "hull_sco_replan": HullSCOReplanPolicy(rng(seed), **hull),
+    }
+
+
+@pytest.mark.parametrize("viewspace", ["original", "permuted"])
+def test_every_policy_gives_a_valid_episode_and_the_oracle_leads_at_view_two(
+    model, networks, viewspace
+):
+    for start in DEFAULT_START_VIEWS:
+        second = {}
+        for name, policy in all_policies(networks, seed=start).items():
+            episode = run_episode(model, viewspace, start, policy)
+            assert episode.views[0] == start, name
+            assert len(set(episode.views)) == 10, name
+            assert np.all(np.diff(episode.coverage) >= 0), name
+            second[name] = episode.coverage[1]
+        # Greedy on the true coverage is the best possible second view.
+        assert all(second["oracle"] >= c for c in second.values()), (start, second)
+
+
+def test_timings_are_recorded_per_decision(model, networks):
+    policies = all_policies(networks)
+    for policy in policies.values():
+        run_episode(model, "original", 3, policy)
+    assert [len(policies["pcnbv"].timings[k]) for k in ("sampling", "network")] == [9, 9]
+    assert [len(policies["pcnbv_sph"].timings[k]) for k in ("signature", "network")] == [9, 9]
+    assert {k: len(v) for k, v in policies["hull_sco"].timings.items()} == {
+        "hull": 1, "simulation": 1, "set_cover": 1,
+    }  # fmt: skip
+    assert len(policies["hull_sco_sph"].timings["signature"]) == 1
+    assert len(policies["hull_sco_replan"].timings["set_cover"]) == 9
+    assert len(policies["oracle"].timings["gains"]) == 9
+
+
+def test_random_policy_is_seeded(model):
+    def views(seed):
+        return run_episode(model, "original", 7, RandomPolicy(np.random.default_rng(seed))).views
+
+    assert views(4) == views(4)
+    assert views(4) != views(5)
+
+
+def test_one_shot_planner_is_the_plan_of_the_start_view(model):
+    view = model.views["original"]
+    policy = HullSCOPolicy(np.random.default_rng(11), intrinsics=SMALL_CAMERA, n_samp=4096)
+    episode = run_episode(model, "original", 10, policy)
+    expected = sco.plan(
+        view.view_points(10),
+        view.poses[:, :3, 3],
+        n_iter=9,
+        exclude=[10],
+        n_samp=4096,
+        rng=np.random.default_rng(11),
+        intrinsics=SMALL_CAMERA,
+        poses=view.poses,
+    )
+    assert episode.views == [10, *expected.views]
+
+
+def test_sph_planner_plans_on_the_signature(model):
+    view = model.views["permuted"]
+    policy = HullSCOPolicy(np.random.default_rng(2), sph=True, lmax=2, intrinsics=SMALL_CAMERA)
+    episode = run_episode(model, "permuted", 1, policy)
+    expected = sco.plan_sph(
+        view.view_points(1),
+        view.poses[:, :3, 3],
+        lmax=2,
+        exclude=[1],
+        rng=np.random.default_rng(2),
+        intrinsics=SMALL_CAMERA,
+        poses=view.poses,
+    )
+    assert episode.views == [1, *expected.views]
+
+
+def test_probes_come_first_and_only_their_probe_points_are_used(model):
+    view = model.views["original"]
+    policy = HullSCOPolicy(
+        np.random.default_rng(3), probes=3, probe_points=20, intrinsics=SMALL_CAMERA
+    )
+    episode = run_episode(model, "original", 15, policy)
+    # The same draws by hand: three probe views, 20 points of each, then a 6-view plan.
+    rng = np.random.default_rng(3)
+    free = np.flatnonzero(np.arange(33) != 15)
+    probes = [int(v) for v in rng.choice(free, 3, replace=False)]
+    parts = [view.view_points(15)]
+    for v in probes:
+        pts = view.view_points(v)
+        parts.append(pts[np.sort(rng.choice(len(pts), 20, replace=False))])
+    plan = sco.plan(
+        np.concatenate(parts),
+        view.poses[:, :3, 3],
+        n_iter=6,
+        exclude=[15, *probes],
+        rng=rng,
+        intrinsics=SMALL_CAMERA,
+        poses=view.poses,
+    )
+    assert episode.views == [15, *probes, *plan.views]
+
+
+def test_replanning_takes_the_first_view_of_a_plan_on_everything_seen(model):
+    view = model.views["original"]
+    episode = run_episode(
+        model,
+        "original",
+        24,
+        HullSCOReplanPolicy(np.random.default_rng(8), intrinsics=SMALL_CAMERA),
+    )
+    rng = np.random.default_rng(8)
+    for i in range(1, 10):
+        seen = episode.views[:i]
+        cloud = np.concatenate([view.view_points(v) for v in seen])
+        plan = sco.plan(cloud, view.poses[:, :3, 3], n_iter=1, exclude=seen, rng=rng,
+                        intrinsics=SMALL_CAMERA, poses=view.poses)  # fmt: skip
+        assert plan.views[0] == episode.views[i]
+
+
+def test_network_decides_on_the_shown_state_but_masks_the_visited_views(model, networks):
+    import torch
+
+    policy = networks["points"].fresh()
+    view = model.views["original"]
+    cloud = np.concatenate([view.view_points(v) for v in (1, 2)])
+    shown = np.zeros(33, dtype=bool)
+    shown[[5, 6]] = True
+    visited = np.zeros(33, dtype=bool)
+    visited[[1, 2]] = True
+    with torch.no_grad():
+        scores = policy.model(
+            torch.from_numpy(policy.features(cloud).astype(np.float32))[None],
+            torch.from_numpy(shown).float()[None],
+        )[0].numpy()
+    assert policy.decide(cloud, shown, visited) == int(
+        np.argmax(np.where(visited, -np.inf, scores))
+    )
+    assert policy.decide(cloud, visited) not in (1, 2)
+
+
+def test_policies_other_than_the_oracle_do_not_read_the_ground_truth(model, networks):
+    rng = np.random.default_rng(0)
+    blind = dataclasses.replace(
+        model,
+        gt_points=rng.random(model.gt_points.shape).astype(np.float32),
+        gt_hull_volume=0.0,
+        views={
+            name: dataclasses.replace(v, coverage=np.zeros_like(v.coverage))
+            for name, v in model.views.items()
+        },
+    )
+    for name in ("random", "pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph", "hull_sco_probes",
+                 "hull_sco_replan"):  # fmt: skip
+        a = run_episode(model, "original", 27, all_policies(networks, 1)[name])
+        b = run_episode(blind, "original", 27, all_policies(networks, 1)[name])
+        assert a.views == b.views, name
+
+
+def test_thicken_gives_a_flat_square_the_volume_of_its_minkowski_sum():
+    square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
+    delta = 1e-3
+    volume = sco.convex_hull(thicken(square, delta)).volume
+    # Square + octahedron of radius d: cross-sections 1 + 4 r + 2 r^2 with r = d - |z|.
+    assert volume == pytest.approx(2 * (delta + 2 * delta**2 + 2 * delta**3 / 3), rel=1e-9)
+
+
+def test_flat_and_empty_clouds_are_planned_with_a_note(model, networks):
+    poses = model.views["original"].poses
+    rng = np.random.default_rng(0)
+    flat = np.c_[rng.random(200) - 0.5, np.zeros(200), rng.random(200) - 0.5]
+    for sph in (False, True):
+        planner = HullSCOPolicy(rng, sph=sph, intrinsics=SMALL_CAMERA)
+        views = planner.plan_from(flat if not sph else flat[:0], poses, [3], 9)
+        assert len(set(views)) == 9 and 3 not in views
+        assert planner.notes
+    net = networks["signature"].fresh()
+    assert net.decide(np.zeros((0, 3), np.float32), np.eye(33, dtype=bool)[0]) != 0
+    assert net.notes and "no signature" in net.notes[0]
+
+
+def test_state_cloud_is_what_the_captured_views_saw(model):
+    state = EpisodeState(model, "original", np.zeros(33, bool), [4, 9])
+    view = model.views["original"]
+    assert len(state.cloud()) == len(view.view_points(4)) + len(view.view_points(9))
