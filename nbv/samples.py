@@ -34,7 +34,11 @@ File ``samples-shard-SSSSS-of-NNNNN.h5`` beside each dataset shard::
 
 from __future__ import annotations
 
+import contextlib
+import multiprocessing as mp
+import os
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -179,10 +183,30 @@ def samples_path(shard_file: Path) -> Path:
     return shard_file.with_name("samples-" + shard_file.name)
 
 
+def _model_job(args: tuple[Path, str, SampleSettings]) -> tuple[dict, list]:
+    """All scores' samples of one model (run in a worker process): ({score: arrays}, skipped)."""
+    shard_file, key, settings = args
+    model = Dataset([shard_file]).model(key, (settings.viewspace,))
+    arrays, skipped = {}, []
+    for score in settings.scores:
+        if score == "vig" and not model.gt_hull_volume > 0:
+            skipped.append((key, score, "ground-truth hull has no volume: VIG undefined"))
+        else:
+            arrays[score] = model_samples(model, score, settings)
+    return arrays, skipped
+
+
 def write_samples(
-    shard_file: Path, settings: SampleSettings, progress: bool = True
+    shard_file: Path, settings: SampleSettings, progress: bool = True, workers: int = 0
 ) -> tuple[Path, list[tuple[str, str, str]]]:
     """Compute every sample of one dataset shard and write its samples file atomically.
+
+    Args:
+        shard_file: the dataset shard.
+        settings: how to draw the samples.
+        progress: show a progress bar over models.
+        workers: processes computing models in parallel (0 = one per CPU core, 1 = this one).
+            The result does not depend on it: every model has its own seeded generator.
 
     Returns:
         The samples file and the (key, score, reason) of skipped model/score pairs.
@@ -196,15 +220,20 @@ def write_samples(
     keys = list(dataset)
     collected: dict[str, list[dict]] = {s: [] for s in settings.scores}
     skipped: list[tuple[str, str, str]] = []
-    for index, key in enumerate(tqdm(keys, desc="samples", unit="model", disable=not progress)):
-        model = dataset.model(key, (settings.viewspace,))
-        for score in settings.scores:
-            if score == "vig" and not model.gt_hull_volume > 0:
-                skipped.append((key, score, "ground-truth hull has no volume: VIG undefined"))
-                continue
-            arrays = model_samples(model, score, settings)
-            arrays["model"] = np.full(len(arrays["step"]), index, dtype=np.int32)
-            collected[score].append(arrays)
+    jobs = [(shard_file, key, settings) for key in keys]
+    workers = min(workers or os.cpu_count() or 1, len(keys))
+    with contextlib.ExitStack() as stack:
+        if workers > 1:
+            pool = stack.enter_context(ProcessPoolExecutor(workers, mp.get_context("fork")))
+            results = pool.map(_model_job, jobs)
+        else:
+            results = map(_model_job, jobs)
+        bar = tqdm(results, total=len(keys), desc="samples", unit="model", disable=not progress)
+        for index, (arrays, skip) in enumerate(bar):
+            skipped += skip
+            for score, a in arrays.items():
+                a["model"] = np.full(len(a["step"]), index, dtype=np.int32)
+                collected[score].append(a)
     out = samples_path(shard_file)
     tmp = out.with_name(out.name + ".tmp")
     with h5py.File(tmp, "w") as handle:

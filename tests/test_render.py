@@ -16,7 +16,14 @@ import numpy as np
 import pytest
 import trimesh
 
-from nbv.camera import Intrinsics, look_at, opencv_to_blender, pixel_rays, valid_depth
+from nbv.camera import (
+    Intrinsics,
+    look_at,
+    opencv_to_blender,
+    pixel_rays,
+    valid_depth,
+    viewspace_poses,
+)
 from nbv.render import (
     BLENDER_SCRIPT,
     RenderError,
@@ -25,6 +32,7 @@ from nbv.render import (
     render_blender,
     render_raycast,
 )
+from nbv.viewspace import original_viewspace
 
 CAMERA = Intrinsics.centred(80, 60, 60.0)
 #: Off-centre principal point and non-square pixels.
@@ -226,9 +234,9 @@ def test_blender_agrees_with_raycast_and_streams(tmp_path):
     assert not any(tmp_path.iterdir())
 
     # Without a workdir a temporary one is made and removed.
-    before = set(Path(tempfile.gettempdir()).glob("nbv-render-*"))
+    before = set(Path(tempfile.gettempdir()).glob("nbv-blender-*"))
     ((_, odd_depth),) = render([odd], ODD_CAMERA)
-    assert set(Path(tempfile.gettempdir()).glob("nbv-render-*")) <= before
+    assert set(Path(tempfile.gettempdir()).glob("nbv-blender-*")) <= before
     results["parts-odd-camera"] = odd_depth
     for key, depth in results.items():
         if key == "broken":
@@ -356,3 +364,33 @@ def test_agreement_statistics():
     assert stats["common"] == 5 and stats["mask_mismatch"] == 2
     assert stats["within"] == pytest.approx(4 / 5)
     assert stats["max"] == pytest.approx(0.001, rel=1e-4)
+
+
+def test_ray_culling_changes_nothing():
+    """Casting only the reachable pixels gives exactly the image of casting every pixel."""
+    from nbv.render import reachable_pixels
+
+    intrinsics = Intrinsics.centred(96, 72, 70.0)
+    parts = [trimesh.creation.box((0.1, 0.6, 0.1)), trimesh.creation.icosphere(2, 0.15)]
+    parts[1].apply_translation([0.25, 0.2, -0.1])
+    mesh = trimesh.util.concatenate(parts)
+    poses = viewspace_poses(original_viewspace())
+    culled = render_raycast(mesh.vertices, mesh.faces, poses, intrinsics)
+    import open3d as o3d
+
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(mesh.vertices.astype(np.float32)),
+        o3d.core.Tensor(mesh.faces.astype(np.uint32)),
+    )
+    for pose, image in zip(poses, culled, strict=True):
+        mask = reachable_pixels(mesh.vertices, mesh.faces, pose, intrinsics)
+        assert 0.0 < mask.mean() < 0.6  # the culling does cull
+        assert mask[np.isfinite(image)].all()
+        d = pixel_rays(intrinsics).reshape(-1, 3) @ pose[:3, :3].T
+        rays = np.concatenate([np.broadcast_to(pose[:3, 3], d.shape), d], axis=1)
+        every = scene.cast_rays(o3d.core.Tensor(rays.astype(np.float32)))["t_hit"].numpy()
+        every = every.reshape(image.shape)
+        assert np.array_equal(np.isfinite(every), np.isfinite(image))
+        # Rays built in float32 here and in float64 there: depth agrees to float32 rounding.
+        np.testing.assert_allclose(image[np.isfinite(image)], every[np.isfinite(every)], atol=1e-5)

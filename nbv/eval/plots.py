@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402 - the backend must be chosen first
 import numpy as np  # noqa: E402
 
 from nbv.eval.disturb import auc_changes  # noqa: E402
-from nbv.eval.report import _order, groups  # noqa: E402
+from nbv.eval.report import groups, method_rank, order_methods  # noqa: E402
 
 #: One colour and line style per method, the same in every figure.
 STYLE = {
@@ -61,7 +61,7 @@ def curves_figure(evaluation, what: str, path: Path) -> None:
     for i, d in enumerate(datasets):
         for j, vs in enumerate(viewspaces):
             ax = axes[i, j]
-            for m in _order(key[2] for key in g if key[0] == d and key[1] == vs):
+            for m in order_methods(key[2] for key in g if key[0] == d and key[1] == vs):
                 s = g[(d, vs, m, None)]
                 colour, line = _style(m)
                 label = f"{m} (AUC {s['auc']:.3f})" if what == "coverage" else m
@@ -90,7 +90,7 @@ def disturbance_figure(evaluation, path: Path) -> bool:
     for ax, (d, vs) in zip(axes[0], panels, strict=True):
         rs = sorted(
             (r for r in rows if r["dataset"] == d and r["viewspace"] == vs),
-            key=lambda r: (_order([r["method"]]), r["check"]),
+            key=lambda r: (method_rank(r["method"]), r["check"]),
         )
         labels, plain, disturbed, colours = [], [], [], []
         for r in rs:

@@ -12,7 +12,9 @@
 from __future__ import annotations
 
 import csv
+import io
 import json
+import os
 from collections import defaultdict
 from dataclasses import asdict
 from pathlib import Path
@@ -27,6 +29,13 @@ from nbv.eval.timing import COLUMNS, PAPER_TIMES, paper_ratios, timing_table
 CLOSE_AUC = 0.02
 DEGRADE_FRACTION = 0.5
 HOLD_FRACTION = 0.8
+
+
+def _write(path: Path, text: str) -> None:
+    """Write a file whole or not at all (a temporary name, then a rename)."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
 
 
 def _jsonable(value):
@@ -74,8 +83,14 @@ def groups(records: list, check: bool = False) -> dict[tuple, dict]:
     return out
 
 
-def _order(methods) -> list[str]:
-    return sorted(set(methods), key=lambda m: METHODS.index(m) if m in METHODS else len(METHODS))
+def method_rank(method: str) -> int:
+    """Position of a method in report order (``METHODS``; unknown names last)."""
+    return METHODS.index(method) if method in METHODS else len(METHODS)
+
+
+def order_methods(methods) -> list[str]:
+    """Distinct method names in report order."""
+    return sorted(set(methods), key=method_rank)
 
 
 def _f(x: float, digits: int = 3) -> str:
@@ -96,7 +111,7 @@ def write_json(evaluation, path: Path) -> None:
         "seconds": evaluation.seconds,
         "episodes": [_jsonable(r.to_json()) for r in evaluation.records],
     }
-    path.write_text(json.dumps(data, indent=1, allow_nan=False))
+    _write(path, json.dumps(data, indent=1, allow_nan=False))
 
 
 def write_csv(evaluation, path: Path) -> None:
@@ -107,18 +122,19 @@ def write_csv(evaluation, path: Path) -> None:
     header += [f"coverage_{i + 1}" for i in range(n_views)]
     header += [f"vig_{i + 1}" for i in range(n_views)]
     header += ["seconds_total", "seconds_online"]
-    with open(path, "w", newline="") as handle:
-        writer = csv.writer(handle)
-        writer.writerow(header)
-        for (dataset, vs, method, check), s in sorted(
-            g.items(), key=lambda kv: (kv[0][0], kv[0][1], _order([kv[0][2]]), kv[0][3] or "")
-        ):
-            row = [dataset, vs, method, check or "", s["n"], f"{s['auc']:.6f}"]
-            row.append("" if not np.isfinite(s["auc_se"]) else f"{s['auc_se']:.6f}")
-            row += [f"{c:.6f}" for c in s["coverage"]]
-            row += ["" if not np.isfinite(v) else f"{v:.6f}" for v in s["vig"]]
-            row += [f"{s['total']:.6f}", f"{s['online']:.6f}"]
-            writer.writerow(row)
+    handle = io.StringIO()
+    writer = csv.writer(handle, lineterminator="\n")
+    writer.writerow(header)
+    for (dataset, vs, method, check), s in sorted(
+        g.items(), key=lambda kv: (kv[0][0], kv[0][1], method_rank(kv[0][2]), kv[0][3] or "")
+    ):
+        row = [dataset, vs, method, check or "", s["n"], f"{s['auc']:.6f}"]
+        row.append("" if not np.isfinite(s["auc_se"]) else f"{s['auc_se']:.6f}")
+        row += [f"{c:.6f}" for c in s["coverage"]]
+        row += ["" if not np.isfinite(v) else f"{v:.6f}" for v in s["vig"]]
+        row += [f"{s['total']:.6f}", f"{s['online']:.6f}"]
+        writer.writerow(row)
+    _write(path, handle.getvalue())
 
 
 def _curve_tables(g: dict, datasets, viewspaces, n_views: int, what: str) -> list[str]:
@@ -127,7 +143,7 @@ def _curve_tables(g: dict, datasets, viewspaces, n_views: int, what: str) -> lis
         for vs in viewspaces:
             rows = [
                 [m] + [_f(v) for v in s[what]]
-                for (dd, vv, m, _), s in sorted(g.items(), key=lambda kv: _order([kv[0][2]]))
+                for (dd, vv, m, _), s in sorted(g.items(), key=lambda kv: method_rank(kv[0][2]))
                 if dd == d and vv == vs
             ]
             if rows:
@@ -143,7 +159,7 @@ def _category_tables(records, datasets, viewspaces) -> list[str]:
             rs = [r for r in records if r.check is None and r.dataset == d and r.viewspace == vs]
             if not rs:
                 continue
-            methods = _order(r.method for r in rs)
+            methods = order_methods(r.method for r in rs)
             # A mesh folder has one category for all; its models are the interesting rows.
             by_key = d == "meshes"
             group = sorted({r.key if by_key else r.category for r in rs}, key=str)
@@ -281,7 +297,7 @@ def report_markdown(evaluation) -> str:
     g = groups(records)
     datasets = [info.name for info in evaluation.datasets]
     viewspaces = list(s.viewspaces)
-    methods = _order(r.method for r in records if r.check is None)
+    methods = order_methods(r.method for r in records if r.check is None)
     n_eps = len(records)
     lines = [
         f"# Evaluation `{s.out_dir.name}`",
@@ -417,4 +433,4 @@ def write_outputs(evaluation) -> None:
     out.mkdir(parents=True, exist_ok=True)
     write_json(evaluation, out / "results.json")
     write_csv(evaluation, out / "summary.csv")
-    (out / "report.md").write_text(report_markdown(evaluation))
+    _write(out / "report.md", report_markdown(evaluation))
