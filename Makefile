@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.installed
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml scripts/ensure_system_libs.sh
+$(STAMP): pyproject.toml scripts/ensure_system_libs.sh scripts/apt_ensure.sh
 	bash scripts/ensure_system_libs.sh
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip

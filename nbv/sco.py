@@ -46,7 +46,7 @@ import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
 from nbv.camera import Intrinsics, backproject, viewspace_poses
-from nbv.scores import DEFAULT_EPS, covered_mask
+from nbv.scores import DEFAULT_EPS, as_cloud, covered_mask
 from nbv.sph import signature_with_centroid
 
 #: Number of hull samples of the paper.
@@ -94,15 +94,6 @@ class Plan:
 # --------------------------------------------------------------------------------------------
 
 
-def _as_cloud(points: np.ndarray, name: str) -> np.ndarray:
-    arr = np.asarray(points, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (N, 3), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{name} holds non-finite values (nan or inf); only finite points allowed")
-    return arr
-
-
 def convex_hull(points: np.ndarray) -> ConvexHull:
     """Qhull's convex hull of a cloud that has volume.
 
@@ -117,7 +108,7 @@ def convex_hull(points: np.ndarray) -> ConvexHull:
         ValueError: for fewer than 4 points or a flat, colinear or single-point cloud (its hull has
             no volume, so there is nothing to sample views on).
     """
-    pts = _as_cloud(points, "points")
+    pts = as_cloud(points, "points")
     if len(pts) < 4:
         raise ValueError(f"points has {len(pts)} points; a convex hull with volume needs >= 4")
     try:
@@ -245,8 +236,8 @@ def analytic_visibility(
     Returns:
         ``(V, n)`` bool.
     """
-    samples = _as_cloud(samples, "samples")
-    normals = _as_cloud(normals, "normals")
+    samples = as_cloud(samples, "samples")
+    normals = as_cloud(normals, "normals")
     if normals.shape != samples.shape:
         raise ValueError(f"normals {normals.shape} must match samples {samples.shape}")
     poses = _as_poses(poses)
@@ -298,7 +289,7 @@ def analytic_visibility_faces(
     Returns:
         ``(V, n)`` bool.
     """
-    samples = _as_cloud(samples, "samples")
+    samples = as_cloud(samples, "samples")
     face_ids = np.asarray(face_ids)
     poses = _as_poses(poses)
     n_faces = len(hull.simplices)
@@ -383,7 +374,7 @@ def raycast_view_sets(
     """
     from nbv.render import render_raycast  # Open3D is heavy; only this path needs it
 
-    samples = _as_cloud(samples, "samples")
+    samples = as_cloud(samples, "samples")
     poses = _as_poses(poses)
     vertices, faces = _hull_mesh(hull)
     depth = render_raycast(vertices, faces, poses, intrinsics)
@@ -698,7 +689,7 @@ def sph_hull_points(points: np.ndarray, lmax: int = 3) -> np.ndarray:
         ``(4 (lmax + 1)^2, 3)`` float64 points: :func:`nbv.sph.signature_with_centroid` shifted
         by the centroid.
     """
-    signature, centroid = signature_with_centroid(_as_cloud(points, "points"), lmax)
+    signature, centroid = signature_with_centroid(as_cloud(points, "points"), lmax)
     return signature.astype(np.float64) + centroid
 
 

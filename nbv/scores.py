@@ -36,7 +36,7 @@ _POPCOUNT = np.array([bin(i).count("1") for i in range(256)], dtype=np.uint8)
 _POPCOUNT.setflags(write=False)
 
 
-def _as_cloud(points: np.ndarray, name: str) -> np.ndarray:
+def as_cloud(points: np.ndarray, name: str) -> np.ndarray:
     """``points`` as a float64 ``(N, 3)`` array with finite values, or a clear ValueError."""
     arr = np.asarray(points, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 3:
@@ -73,8 +73,8 @@ def covered_mask(partial: np.ndarray, gt: np.ndarray, eps: float = DEFAULT_EPS) 
     Returns:
         ``(N,)`` bool mask.
     """
-    partial = _as_cloud(partial, "partial")
-    gt = _as_cloud(gt, "gt")
+    partial = as_cloud(partial, "partial")
+    gt = as_cloud(gt, "gt")
     if not eps > 0:
         raise ValueError(f"eps must be positive, got {eps}")
     if len(partial) == 0 or len(gt) == 0:
@@ -111,7 +111,7 @@ def coverage_bits(
         ``(V, ceil(N / 8))`` uint8: row ``v`` is ``np.packbits(covered_mask(view_v, gt, eps))``
         (big bit order, zero padding).
     """
-    gt = _as_cloud(gt, "gt")
+    gt = as_cloud(gt, "gt")
     rows = [np.packbits(covered_mask(pts, gt, eps)) for pts in view_points]
     if not rows:
         return np.zeros((0, (len(gt) + 7) // 8), dtype=np.uint8)
@@ -218,7 +218,7 @@ def hull_volume(points: np.ndarray) -> float:
     cloud) has no volume and gives 0.0; it never raises for those. Non-finite values raise a
     ValueError.
     """
-    hull = _hull(_as_cloud(points, "points"))
+    hull = _hull(as_cloud(points, "points"))
     return 0.0 if hull is None else float(hull.volume)
 
 
@@ -230,7 +230,7 @@ def hull_vertices(points: np.ndarray) -> np.ndarray:
     the 2-D hull vertices of a flat cloud, the two ends of a colinear one, the single point of an
     all-duplicate one. An empty cloud gives ``(0, 3)``.
     """
-    pts = _as_cloud(points, "points")
+    pts = as_cloud(points, "points")
     if len(pts) == 0:
         return np.zeros((0, 3))
     centroid, axes, rank = _principal_frame(pts)
@@ -289,7 +289,7 @@ def _state_vertices(hull_verts: Sequence[np.ndarray], state: np.ndarray) -> np.n
     chosen = [hull_verts[i] for i in np.flatnonzero(state)]
     if not chosen:
         return np.zeros((0, 3))
-    return _as_cloud(np.concatenate(chosen, axis=0), "hull_verts of the visited views")
+    return as_cloud(np.concatenate(chosen, axis=0), "hull_verts of the visited views")
 
 
 def vig_of_state(
@@ -336,6 +336,6 @@ def vig_gains(
     base_volume = hull_volume(base)
     gains = np.zeros(len(hull_verts))
     for v in np.flatnonzero(~state):
-        grown = hull_volume(np.concatenate([base, _as_cloud(hull_verts[v], "hull_verts")]))
+        grown = hull_volume(np.concatenate([base, as_cloud(hull_verts[v], "hull_verts")]))
         gains[v] = (grown - base_volume) / gt_vol
     return gains
