@@ -84,7 +84,10 @@ class SampleSettings:
 
 
 def farthest_points(points: np.ndarray, n: int) -> np.ndarray:
-    """Farthest point sampling (fpsample's bucket QuickFPS, started at point 0): (N, 3) -> (n, 3).
+    """Farthest point sampling (fpsample's bucket QuickFPS): (N, 3) -> (n, 3).
+
+    Exact farthest point sampling; the first point is the first of fpsample's internal kd-tree
+    order (``start_idx=0`` indexes that order, not the input), so the result is deterministic.
 
     Clouds with fewer than ``n`` points are returned whole, then repeated cyclically to ``n``.
     """

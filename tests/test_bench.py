@@ -1,0 +1,41 @@
+"""The benchmark's plain reference implementations agree with the fast paths they time."""
+
+import numpy as np
+import pytest
+
+from nbv import sco, sph
+from nbv.bench import format_table, numpy_fps, python_greedy, scipy_signature
+from nbv.samples import farthest_points
+
+
+def test_numpy_fps_equals_fpsample():
+    points = np.random.default_rng(0).random((3000, 3)).astype(np.float32)
+    fast = farthest_points(points, 64)
+    # fpsample starts from a point of its own kd-tree order; start the reference there too.
+    start = int(np.flatnonzero((points == fast[0]).all(axis=1))[0])
+    np.testing.assert_array_equal(numpy_fps(points, 64, start), fast)
+
+
+def test_scipy_signature_equals_recurrence_signature():
+    rng = np.random.default_rng(1)
+    d = rng.normal(size=(5000, 3))
+    points = d / np.linalg.norm(d, axis=1, keepdims=True) * (0.4 + 0.05 * d[:, :1] ** 2)
+    np.testing.assert_allclose(scipy_signature(points, 3), sph.signature(points, 3), atol=1e-5)
+
+
+def test_python_greedy_equals_packed_greedy():
+    sets = np.random.default_rng(2).random((12, 300)) < 0.2
+    views, _ = sco.greedy_max_coverage(sets, 5, (3,))
+    assert python_greedy(sets, 5, (3,)) == views
+
+
+def test_table_marks_missed_targets():
+    rows = [
+        dict(name="a", ours=0.002, reference=0.2, ratio=100.0, target=0.001, note="x"),
+        dict(name="b", ours=0.0005, reference=0.2, ratio=400.0, target=0.001, note="y"),
+    ]
+    table = format_table(rows)
+    assert "| a | 2.000 | 200.0 | 100.0x | 1 | NO | x |" in table
+    assert "| b | 0.500 | 200.0 | 400.0x | 1 | yes | y |" in table
+    with pytest.raises(KeyError):
+        format_table([{"name": "c"}])
