@@ -281,7 +281,7 @@ def test_default_config_composes_to_the_documented_defaults():
     assert s.out_dir == Path("outputs/eval/x")
     assert s.checkpoints["pcnbv"] == "outputs/train/pcnbv_coverage_fold0/best.pt"
     assert s.checkpoints["pcnbv_sph"] == "outputs/train/pcnbv_sph_coverage_fold0/best.pt"
-    assert s.check_start_views == (1, 7, 15, 27)
+    assert s.check_start_views == (1, 10, 24)
     with_meshes = compose_with(["mesh_dir=" + str(ROOT / "tests")])
     assert with_meshes.datasets == ("unseen", "meshes")
 

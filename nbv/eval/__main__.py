@@ -7,10 +7,10 @@ report.md and the PNG plots.
 import os
 import sys
 
-# Torch's OpenMP threads spin while they wait; on a 2-core machine shared with other work
-# (rendering, the hull planner's numpy) that made a PCNBV forward pass 3-7x slower (0.69 s
-# instead of 0.21 s measured under load). Passive waiting costs nothing measurable when idle.
-# Set before torch is imported; an explicit OMP_WAIT_POLICY in the environment wins.
+# Torch's OpenMP threads spin while they wait. On a 2-core machine shared with other work that
+# made a PCNBV forward pass over 3x slower (measured under load: 0.69 s spinning, 0.21 s
+# passive); on idle cores passive waiting costs about 5 % (0.082 s -> 0.088 s). Set before
+# torch is imported; an explicit OMP_WAIT_POLICY in the environment wins.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import hydra  # noqa: E402

@@ -81,7 +81,7 @@ class EvalSettings:
     hull: HullSettings = field(default_factory=HullSettings)
     checks: tuple[str, ...] = CHECKS
     disturb_viewspaces: tuple[str, ...] = ("original",)
-    disturb_start_views: tuple[int, ...] = (1, 7, 15, 27)
+    disturb_start_views: tuple[int, ...] = (1, 10, 24)
     disturb_radius: float = 0.5
     seed: int = 0
     threads: int = 0

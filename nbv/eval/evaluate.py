@@ -225,10 +225,12 @@ def run(settings: EvalSettings) -> Path:
     from nbv.eval.report import write_outputs
 
     evaluation = evaluate(settings)
-    Path(settings.out_dir).mkdir(parents=True, exist_ok=True)
+    # The numbers first: a failure while drawing must not lose them. report.md is written
+    # again after the plots, to show them.
+    write_outputs(evaluation)
     if settings.plots:
         from nbv.eval.plots import draw_all
 
         draw_all(evaluation)
-    write_outputs(evaluation)
+        write_outputs(evaluation, report_only=True)
     return settings.out_dir

@@ -86,7 +86,7 @@ def disturbance_figure(evaluation, path: Path) -> bool:
     if not rows:
         return False
     panels = sorted({(r["dataset"], r["viewspace"]) for r in rows})
-    fig, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(panels), figsize=(6.5 * len(panels), 4.6), squeeze=False)
     for ax, (d, vs) in zip(axes[0], panels, strict=True):
         rs = sorted(
             (r for r in rows if r["dataset"] == d and r["viewspace"] == vs),
@@ -108,7 +108,7 @@ def disturbance_figure(evaluation, path: Path) -> bool:
         ax.set_xlabel("AUC")
         ax.set_xlim(0, max(plain + disturbed) * 1.18)
         ax.set_title(f"{d}, {vs} viewspace: AUC change", fontsize=10)
-        ax.legend(fontsize=8, loc="lower right")
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
         ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

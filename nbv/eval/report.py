@@ -319,6 +319,9 @@ def report_markdown(evaluation) -> str:
                 f"  - flat ground truth (no hull volume, VIG undefined: NaN, left out of the VIG "
                 f"means): {', '.join(info.flat)}"
             )
+    nets = [m for m in s.checkpoints if m in methods]
+    if nets:
+        lines += ["", "Networks: " + "; ".join(f"`{m}` from `{s.checkpoints[m]}`" for m in nets)]
     if evaluation.skipped:
         lines += ["", "Skipped methods:"]
         lines += [f"- `{m}`: {reason}" for m, reason in evaluation.skipped.items()]
@@ -427,10 +430,12 @@ def report_markdown(evaluation) -> str:
 PLOT_FILES = ("coverage_by_view.png", "vig_by_view.png", "disturbance.png", "reconstruction.png")
 
 
-def write_outputs(evaluation) -> None:
-    """Write results.json, summary.csv and report.md into ``evaluation.settings.out_dir``."""
+def write_outputs(evaluation, report_only: bool = False) -> None:
+    """Write results.json, summary.csv and report.md into ``evaluation.settings.out_dir``
+    (only report.md with ``report_only``)."""
     out = Path(evaluation.settings.out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    write_json(evaluation, out / "results.json")
-    write_csv(evaluation, out / "summary.csv")
+    if not report_only:
+        write_json(evaluation, out / "results.json")
+        write_csv(evaluation, out / "summary.csv")
     _write(out / "report.md", report_markdown(evaluation))
