@@ -28,7 +28,7 @@ class TrainSettings:
     input: str = "points"
     net: dict = field(default_factory=dict)
     seed: int = 0
-    epochs: int = 12
+    epochs: int = 4
     batch_size: int = 32
     lr: float = 1e-3
     lr_decay: float = 0.7
