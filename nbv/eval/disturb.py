@@ -43,70 +43,60 @@ def permuted_state(view_state: np.ndarray, rng: np.random.Generator) -> np.ndarr
     return rng.permutation(np.asarray(view_state, dtype=bool))
 
 
-@dataclass
-class RandomCloudNetwork:
-    """``network`` decides on a random cloud of the true cloud's size and the true view state."""
+class _Wrapper:
+    """A disturbed policy reports the timings and notes of the policy it wraps (``inner``)."""
 
-    network: NetworkPolicy
-    rng: np.random.Generator
-    radius: float = 0.5
+    inner: NetworkPolicy | HullSCOPolicy
 
     @property
     def timings(self) -> dict[str, list[float]]:
-        return self.network.timings
+        return self.inner.timings
 
     @property
     def notes(self) -> list[str]:
-        return self.network.notes
+        return self.inner.notes
+
+
+@dataclass
+class RandomCloudNetwork(_Wrapper):
+    """The wrapped network decides on a random cloud (the true cloud's size), true view state."""
+
+    inner: NetworkPolicy
+    rng: np.random.Generator
+    radius: float = 0.5
 
     def __call__(self, state: EpisodeState) -> int:
         cloud = random_ball(max(len(state.cloud()), 1), self.radius, self.rng)
-        return self.network.decide(cloud, state.view_state)
+        return self.inner.decide(cloud, state.view_state)
 
 
 @dataclass
-class PermutedStateNetwork:
-    """``network`` decides on the true cloud and a permuted view state; visited views stay
+class PermutedStateNetwork(_Wrapper):
+    """The wrapped network decides on the true cloud and a permuted view state; visited views stay
     masked by the true state."""
 
-    network: NetworkPolicy
+    inner: NetworkPolicy
     rng: np.random.Generator
-
-    @property
-    def timings(self) -> dict[str, list[float]]:
-        return self.network.timings
-
-    @property
-    def notes(self) -> list[str]:
-        return self.network.notes
 
     def __call__(self, state: EpisodeState) -> int:
         shown = permuted_state(state.view_state, self.rng)
-        return self.network.decide(state.cloud(), shown, visited=state.view_state)
+        return self.inner.decide(state.cloud(), shown, visited=state.view_state)
 
 
 @dataclass
-class RandomHullPlanner:
+class RandomHullPlanner(_Wrapper):
     """The one-shot hull planner on the hull of random points (as many as the start view's)."""
 
-    planner: HullSCOPolicy
+    inner: HullSCOPolicy
     rng: np.random.Generator
     radius: float = 0.5
-
-    @property
-    def timings(self) -> dict[str, list[float]]:
-        return self.planner.timings
-
-    @property
-    def notes(self) -> list[str]:
-        return self.planner.notes
 
     def __call__(self, state: EpisodeState) -> list[int]:
         view = state.model.views[state.viewspace]
         n = max(len(view.view_points(state.order[0])), 4)
-        remaining = min(self.planner.n_views, len(view.poses)) - len(state.order)
+        remaining = min(self.inner.n_views, len(view.poses)) - len(state.order)
         cloud = random_ball(n, self.radius, self.rng)
-        return self.planner.plan_from(cloud, view.poses, list(state.order), remaining)
+        return self.inner.plan_from(cloud, view.poses, list(state.order), remaining)
 
 
 def disturbed(check: str, policy, rng: np.random.Generator, radius: float = 0.5):
