@@ -43,6 +43,17 @@ def _random_views(rng: np.random.Generator, n_views: int, n_gt: int, eps: float)
     return gt, views
 
 
+def assert_gains_are_differences(gains, state, score_of, base, abs_tol):
+    """Gains are 0 for visited views and score(state + v) - score(state) for the others."""
+    for v in range(len(state)):
+        if state[v]:
+            assert gains[v] == 0.0
+        else:
+            grown = state.copy()
+            grown[v] = True
+            assert gains[v] == pytest.approx(score_of(grown) - base, abs=abs_tol)
+
+
 def test_default_eps_is_pcnbv():
     assert DEFAULT_EPS == 0.00707
     assert DEFAULT_EPS**2 == pytest.approx(5e-5, rel=1e-3)
@@ -98,16 +109,13 @@ def test_bits_give_the_coverage_of_the_merged_cloud():
         merged = np.concatenate([views[v] for v in np.flatnonzero(state)] + [np.zeros((0, 3))])
         expected = _brute_covered(merged, gt, eps).mean()
         assert coverage_from_bits(bits, state, len(gt)) == expected
-        gains = coverage_gains(bits, state, len(gt))
-        for v in range(9):
-            if state[v]:
-                assert gains[v] == 0.0
-            else:
-                grown = state.copy()
-                grown[v] = True
-                assert gains[v] == pytest.approx(
-                    coverage_from_bits(bits, grown, len(gt)) - expected, abs=1e-15
-                )
+        assert_gains_are_differences(
+            coverage_gains(bits, state, len(gt)),
+            state,
+            lambda grown: coverage_from_bits(bits, grown, len(gt)),
+            expected,
+            abs_tol=1e-15,
+        )
     assert coverage_from_bits(bits, np.zeros(9, dtype=bool), len(gt)) == 0.0
     np.testing.assert_allclose(
         coverage_gains(bits, np.zeros(9, dtype=bool), len(gt)),
@@ -213,15 +221,13 @@ def test_vig_of_state_equals_the_hull_of_the_merged_cloud():
         expected = vig(merged, gt)
         assert vig_of_state(verts, state, gt_volume) == pytest.approx(expected, rel=1e-10)
         gains = vig_gains(verts, state, gt_volume)
-        for v in range(12):
-            if state[v]:
-                assert gains[v] == 0.0
-            else:
-                grown = state.copy()
-                grown[v] = True
-                assert gains[v] == pytest.approx(
-                    vig_of_state(verts, grown, gt_volume) - expected, abs=1e-10
-                )
+        assert_gains_are_differences(
+            gains,
+            state,
+            lambda grown: vig_of_state(verts, grown, gt_volume),
+            expected,
+            abs_tol=1e-10,
+        )
         assert (gains >= -1e-12).all()
     assert vig_of_state(verts, np.zeros(12, dtype=bool), gt_volume) == 0.0
     with pytest.raises(ValueError, match="gt_volume"):
