@@ -16,13 +16,20 @@ Data flow for one sample (``C`` = channels, defaults in brackets)::
 Internally features are laid out points-last-but-one, ``(B, N, C)``, so every "1x1 conv" is a
 single matrix product (``nn.Linear``) over the channel axis.
 
+Precision: forward passes may run under bfloat16 autocast (:func:`autocast`, ``"bf16"``), which
+CPUs with AMX or AVX512-BF16 run 1.3-1.5x faster than float32. The neighbour search and the
+fully connected head stay in float32 either way: neighbour ranks and the small differences
+between views' predicted gains are what the output is used for, and bfloat16 keeps only about
+three significant digits.
+
 Public API: :class:`PCNBVConfig`, :class:`PCNBV`, :func:`masked_argmax`,
 :func:`count_parameters`, :func:`save_checkpoint`, :func:`load_checkpoint`,
-:class:`CheckpointError`.
+:class:`CheckpointError`, :data:`PRECISIONS`, :func:`resolve_precision`, :func:`autocast`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import math
 import os
@@ -40,6 +47,49 @@ from torch import Tensor, nn
 CHECKPOINT_FORMAT = "nbv.net.PCNBV"
 #: Bumped when the checkpoint layout changes incompatibly.
 CHECKPOINT_VERSION = 1
+#: Arithmetic of forward passes: ``"auto"`` (bf16 where the hardware runs it natively, else
+#: fp32), ``"fp32"`` or ``"bf16"`` (bfloat16 autocast).
+PRECISIONS = ("auto", "fp32", "bf16")
+
+
+def resolve_precision(precision: str, device: torch.device | str = "cpu") -> str:
+    """``"fp32"`` or ``"bf16"`` for a :data:`PRECISIONS` name on ``device``.
+
+    ``"auto"`` is ``"bf16"`` on a CPU with AMX tiles or AVX512-BF16 instructions and on a CUDA
+    device that supports bfloat16; elsewhere bfloat16 would be emulated (slower than float32),
+    so it is ``"fp32"``.
+
+    Raises:
+        ValueError: an unknown name.
+    """
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision={precision!r}: must be one of {', '.join(PRECISIONS)}")
+    if precision != "auto":
+        return precision
+    kind = torch.device(device).type
+    if kind == "cuda":
+        return "bf16" if torch.cuda.is_bf16_supported() else "fp32"
+    if kind == "cpu" and (
+        torch.cpu._is_amx_tile_supported() or torch.cpu._is_avx512_bf16_supported()
+    ):
+        return "bf16"
+    return "fp32"
+
+
+def autocast(
+    precision: str, device: torch.device | str = "cpu"
+) -> contextlib.AbstractContextManager:
+    """The context a forward (and backward) pass runs in for ``precision`` on ``device``:
+    bfloat16 autocast for ``"bf16"`` (``"auto"`` resolved by :func:`resolve_precision`),
+    nothing for ``"fp32"``."""
+    kind = torch.device(device).type
+    enabled = resolve_precision(precision, device) == "bf16"
+    return torch.autocast(kind, dtype=torch.bfloat16, enabled=enabled)
+
+
+def _float32(x: Tensor) -> contextlib.AbstractContextManager:
+    """A context with autocast off on ``x``'s device (its float32 region)."""
+    return torch.autocast(x.device.type, enabled=False)
 
 
 @dataclass(frozen=True)
@@ -175,7 +225,8 @@ def knn_indices(x: Tensor, k: int) -> Tensor:
     Returns:
         (B, N, k) int64 indices into the N axis, in no particular order; not differentiable.
     """
-    with torch.no_grad():
+    with torch.no_grad(), _float32(x):
+        x = x.float()
         # |x_i - x_j|^2 minus the |x_i|^2 term, which is the same along a row, so ranks agree.
         sq = (x * x).sum(-1).unsqueeze(1)
         dist = torch.baddbmm(sq, x, x.transpose(1, 2), alpha=-2.0)
@@ -341,7 +392,7 @@ class PCNBV(nn.Module):
             view_state: (B, V) bool or float, 1 = visited.
 
         Returns:
-            (B, V) float, same dtype as ``points``.
+            (B, V) float, same dtype as ``points`` (also under bfloat16 :func:`autocast`).
         """
         self._check_inputs(points, view_state)
         if self.config.normalize_input:
@@ -351,8 +402,9 @@ class PCNBV(nn.Module):
         tiled_global = max_over(per_point, 1, keepdim=True).expand(-1, n, -1)
         tiled_state = view_state.to(per_point.dtype).unsqueeze(1).expand(-1, n, -1)
         x = torch.cat([per_point, tiled_global, tiled_state], dim=-1)
-        x = self.convs(self.attention(x))
-        return self.head(max_over(x, 1))
+        x = max_over(self.convs(self.attention(x)), 1)
+        with _float32(x):
+            return self.head(x.to(points.dtype))
 
 
 def masked_argmax(scores: Tensor, view_state: Tensor) -> Tensor:

@@ -103,19 +103,25 @@ class NetworkPolicy:
     spherical signature (``input == "signature"``, degree ``lmax``) and the view state in, the
     best unvisited view of its predicted gains out.
 
-    ``timings`` collects seconds per decision: ``sampling`` (or ``signature``) and ``network``.
+    ``precision`` is the arithmetic of the forward pass (:data:`nbv.net.PRECISIONS`; ``"auto"``
+    is bfloat16 autocast where the CPU runs it natively). ``timings`` collects seconds per
+    decision: ``sampling`` (or ``signature``) and ``network``.
     """
 
     model: object  # nbv.net.PCNBV, kept untyped so that importing this module needs no torch
     input: str = "points"
-    n_points: int = 1024
+    n_points: int = 512
     lmax: int = 3
+    precision: str = "auto"
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
     @classmethod
-    def from_checkpoint(cls, path: str | Path, n_views: int | None = None) -> NetworkPolicy:
-        """Load a training checkpoint (``best.pt``); its ``extra`` says the input kind.
+    def from_checkpoint(
+        cls, path: str | Path, n_views: int | None = None, precision: str | None = None
+    ) -> NetworkPolicy:
+        """Load a training checkpoint (``best.pt``); its ``extra`` says the input kind, the
+        number of points and (unless ``precision`` is given) the precision it was trained with.
 
         Raises:
             nbv.net.CheckpointError: the file is missing or unusable (the message names it).
@@ -128,11 +134,12 @@ class NetworkPolicy:
             input=str(extra.get("input", "points")),
             n_points=int(extra.get("eval_points", 1024)),
             lmax=int(extra.get("lmax", 3)),
+            precision=precision or str(extra.get("precision", "fp32")),
         )
 
     def fresh(self) -> NetworkPolicy:
         """The same network with empty ``timings`` and ``notes`` (one per episode)."""
-        return NetworkPolicy(self.model, self.input, self.n_points, self.lmax)
+        return NetworkPolicy(self.model, self.input, self.n_points, self.lmax, self.precision)
 
     def features(self, cloud: np.ndarray) -> np.ndarray:
         """The network input for a cloud: (n_points, 3) or the (4 (lmax+1)^2, 3) signature."""
@@ -157,15 +164,16 @@ class NetworkPolicy:
         """
         import torch
 
-        from nbv.net import masked_argmax
+        from nbv.net import autocast, masked_argmax
 
         t0 = time.perf_counter()
         points = self.features(cloud)
         t1 = time.perf_counter()
-        with torch.no_grad():
+        with torch.no_grad(), autocast(self.precision, next(self.model.parameters()).device):
+            device = next(self.model.parameters()).device
             x = torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32))[None]
             s = torch.from_numpy(np.asarray(view_state, dtype=bool))[None]
-            scores = self.model(x, s.float())
+            scores = self.model(x.to(device), s.float().to(device)).cpu()
             mask = s if visited is None else torch.from_numpy(np.asarray(visited, bool))[None]
             choice = int(masked_argmax(scores, mask)[0])
         t2 = time.perf_counter()

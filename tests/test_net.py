@@ -17,11 +17,13 @@ from nbv.net import (
     CheckpointError,
     DenseEdgeConv,
     PCNBVConfig,
+    autocast,
     count_parameters,
     knn_indices,
     load_checkpoint,
     masked_argmax,
     max_over,
+    resolve_precision,
     save_checkpoint,
 )
 
@@ -507,3 +509,32 @@ def test_load_checkpoint_errors_name_the_file(tmp_path: Path) -> None:
 
 def test_checkpoint_error_is_a_value_error() -> None:
     assert issubclass(CheckpointError, ValueError)
+
+
+# ---- precision ------------------------------------------------------------------------------
+
+
+def test_resolve_precision() -> None:
+    assert resolve_precision("fp32") == "fp32"
+    assert resolve_precision("bf16") == "bf16"
+    assert resolve_precision("auto") in ("fp32", "bf16")
+    with pytest.raises(ValueError, match="precision='fp16'.*auto, fp32, bf16"):
+        resolve_precision("fp16")
+
+
+def test_bf16_autocast_keeps_neighbours_and_head_in_fp32() -> None:
+    torch.manual_seed(0)
+    model = tiny(n_views=9).eval()
+    points, state, _ = random_batch(3, 40, 9)
+    features = torch.randn(2, 50, 8)
+    with torch.no_grad():
+        exact = model(points, state)
+        with autocast("bf16"):
+            approx = model(points, state)
+            idx = knn_indices(features, 6)
+    assert approx.dtype == torch.float32
+    # bfloat16 keeps ~3 significant digits in the convolutions; the head adds no rounding.
+    assert torch.allclose(approx, exact, atol=0.05 * exact.abs().max().item())
+    assert torch.equal(idx.sort(-1).values, knn_indices(features, 6).sort(-1).values)
+    with autocast("fp32"), torch.no_grad():
+        assert torch.equal(model(points, state), exact)

@@ -84,6 +84,18 @@ def test_signature_model_trains(tiny_dataset, tmp_path):
     assert extra["input"] == "signature" and extra["lmax"] == 2
 
 
+def test_bf16_training_is_reproducible_and_recorded(tiny_dataset, tmp_path):
+    # Forced bf16 (emulated where the CPU lacks it): two runs give the same weights, and the
+    # checkpoint records the precision the evaluator will use.
+    for out in ("a", "b"):
+        run(tiny_settings(tiny_dataset, tmp_path / out, epochs=1, precision="bf16"))
+    a, extra = load_checkpoint(tmp_path / "a" / "last.pt")
+    b, _ = load_checkpoint(tmp_path / "b" / "last.pt")
+    assert extra["precision"] == "bf16"
+    for (name, pa), pb in zip(a.state_dict().items(), b.state_dict().values(), strict=True):
+        assert torch.equal(pa, pb), name
+
+
 def test_training_loss_drops(tiny_dataset, tmp_path):
     run(tiny_settings(tiny_dataset, tmp_path, epochs=6, lr=3e-3, eval_every=6))
     losses = [float(r["train_loss"]) for r in read_csv(tmp_path / "metrics.csv")]
@@ -92,7 +104,12 @@ def test_training_loss_drops(tiny_dataset, tmp_path):
 
 @pytest.mark.parametrize(
     "bad, message",
-    [(dict(fold=8), "fold=8"), (dict(score="loud"), "score"), (dict(device="tpu"), "device")],
+    [
+        (dict(fold=8), "fold=8"),
+        (dict(score="loud"), "score"),
+        (dict(device="tpu"), "device"),
+        (dict(precision="fp16"), "precision"),
+    ],
 )
 def test_bad_settings_are_refused(tmp_path, bad, message):
     with pytest.raises(TrainConfigError, match=message):

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from nbv.net import PRECISIONS
 from nbv.synthetic import TRAIN_CATEGORIES
 
 SCORES = ("coverage", "vig")
@@ -35,7 +36,8 @@ class TrainSettings:
     lr_step_epochs: int = 20
     l2: float = 1e-4
     train_points: int = 512
-    eval_points: int = 1024
+    eval_points: int = 512
+    precision: str = "auto"
     eval_every: int = 2
     start_views: tuple[int, ...] = (1, 3, 7, 10, 15, 24, 27, 30)
     device: str = "auto"
@@ -56,6 +58,7 @@ class TrainSettings:
             ("eval_points", self.eval_points >= 1, "an integer >= 1"),
             ("eval_every", self.eval_every >= 1, "an integer >= 1"),
             ("device", self.device in DEVICES, f"one of {', '.join(DEVICES)}"),
+            ("precision", self.precision in PRECISIONS, f"one of {', '.join(PRECISIONS)}"),
         ]
         for key, ok, allowed in checks:
             if not ok:

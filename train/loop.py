@@ -29,7 +29,14 @@ from tqdm import tqdm
 import nbv.dataset
 from nbv.dataset.reader import DatasetError
 from nbv.episodes import auc, run_episode
-from nbv.net import PCNBV, CheckpointError, PCNBVConfig, load_checkpoint, save_checkpoint
+from nbv.net import (
+    PCNBV,
+    CheckpointError,
+    PCNBVConfig,
+    autocast,
+    load_checkpoint,
+    save_checkpoint,
+)
 from nbv.policies import NetworkPolicy, OraclePolicy, RandomPolicy
 from nbv.samples import SampleSet, load_samples
 from train.config import TrainSettings
@@ -109,7 +116,8 @@ def predict(
         for start in range(0, len(samples), settings.batch_size):
             index = np.arange(start, min(start + settings.batch_size, len(samples)))
             x, s, t = (a.to(device) for a in batch_inputs(samples, index, settings, None))
-            pred = model(x, s)
+            with autocast(settings.precision, device):
+                pred = model(x, s)
             losses.append(float(((pred - t) ** 2).sum(dim=1).sum()))
             preds.append(pred.cpu().numpy())
     return np.concatenate(preds), sum(losses) / len(samples)
@@ -204,6 +212,7 @@ def run(settings: TrainSettings) -> dict:
         "input": settings.input,
         "lmax": lmax,
         "eval_points": settings.eval_points,
+        "precision": settings.precision,
         "held_out": settings.held_out,
     }
     row: dict = {}
@@ -225,7 +234,9 @@ def run(settings: TrainSettings) -> dict:
             x, s, t = (a.to(device) for a in batch_inputs(train, index, settings, rng))
             t1 = time.perf_counter()
             optimizer.zero_grad()
-            loss = loss_fn(model, model(x, s), t, settings.l2)
+            with autocast(settings.precision, device):
+                pred = model(x, s)
+            loss = loss_fn(model, pred, t, settings.l2)
             loss.backward()
             optimizer.step()
             t2 = time.perf_counter()
@@ -248,7 +259,9 @@ def run(settings: TrainSettings) -> dict:
             "load_fraction": load_time / max(load_time + step_time, 1e-9),
         }
         if (epoch + 1) % settings.eval_every == 0 or epoch + 1 == settings.epochs:
-            policy = NetworkPolicy(model.eval(), settings.input, settings.eval_points, lmax)
+            policy = NetworkPolicy(
+                model.eval(), settings.input, settings.eval_points, lmax, settings.precision
+            )
             curve = episodes_metric(dataset, val_keys, policy, settings.start_views).mean(axis=0)
             row["val_auc"] = auc(curve)
             row.update({f"val_cov_{i + 1}": float(c) for i, c in enumerate(curve)})
