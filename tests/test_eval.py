@@ -316,3 +316,33 @@ def test_settings_are_replaceable_and_validated_on_replace(tiny, tmp_path):
     settings = tiny_settings(tiny, tmp_path)
     with pytest.raises(EvalConfigError, match="disturb.start_views"):
         replace(settings, disturb_start_views=(2,))
+
+
+def test_interrupted_evaluation_resumes_from_its_log(tiny, tmp_path):
+    kw = dict(methods=("random", "hull_sco"), viewspaces=("original",), checks=(), plots=False)
+    settings = tiny_settings(tiny, tmp_path / "out", **kw)
+    first = evaluate(settings).records
+    log = tmp_path / "out" / "episodes.jsonl"
+    lines = log.read_text().splitlines(keepends=True)
+    done_lines = [i for i, line in enumerate(lines) if line.startswith('{"done"')]
+    assert len(done_lines) == 2  # the two models of the tiny dataset
+    # A kill while the second model's records were being written: its done line never came
+    # and the last record is torn.
+    log.write_text("".join(lines[: done_lines[0] + 2]) + lines[done_lines[0] + 2][:25])
+    second = evaluate(settings).records
+    assert [(r.key, r.method, r.start, r.views, r.coverage) for r in second] == [
+        (r.key, r.method, r.start, r.views, r.coverage) for r in first
+    ]
+    n_first = len(first) // 2
+    # The first model was read back (same measured times), the second one run again.
+    assert [r.decision_times for r in second[:n_first]] == [
+        r.decision_times for r in first[:n_first]
+    ]
+    assert [r.decision_times for r in second[n_first:]] != [
+        r.decision_times for r in first[n_first:]
+    ]
+    assert log.read_text().count('{"done"') == 2
+    # Other settings: the old log is set aside and everything runs again.
+    evaluate(replace(settings, seed=7))
+    assert (tmp_path / "out" / "episodes.jsonl.stale").exists()
+    assert log.read_text().count('{"done"') == 2

@@ -4,8 +4,9 @@ Order of work: the settings are already valid (:class:`nbv.eval.config.EvalSetti
 datasets are opened (and ``mesh_dir`` prepared) and checked against the viewspaces and start
 views; the network checkpoints are loaded, a method whose checkpoint is missing or unusable is
 skipped with the reason; then every episode runs under one progress bar, the methods first,
-the disturbance checks after. :func:`run` also writes the outputs (:mod:`nbv.eval.report`) and
-the plots (:mod:`nbv.eval.plots`).
+the disturbance checks after. Every finished model is logged (:mod:`nbv.eval.episode_log`),
+so an interrupted evaluation resumes where it stopped. :func:`run` also writes the outputs
+(:mod:`nbv.eval.report`) and the plots (:mod:`nbv.eval.plots`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import nbv.dataset
 from nbv.dataset.reader import Dataset
 from nbv.eval.config import NETWORK_INPUTS, EvalSettings
 from nbv.eval.disturb import CHECK_METHODS, disturbed
+from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import Context, EpisodeRecord, episode_rng, make_policy, run_record
 from nbv.policies import NetworkPolicy
@@ -191,6 +193,14 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         torch.set_num_threads(settings.threads)
     runnable = [m for m in settings.methods if m not in skipped]
     jobs = _jobs(settings, runnable)
+    ident = identity(
+        settings,
+        [Path(settings.checkpoints[m]) for m in runnable if m in networks],
+        [info.path for info, _ in opened],
+    )
+    log = EpisodeLog(settings.out_dir / LOG_NAME, ident)
+    if log.done:
+        print(f"nbv.eval: resuming: {len(log.done)} models done in {log.path}", file=sys.stderr)
     total = sum(len(info.keys) for info, _ in opened) * len(jobs)
     records: list[EpisodeRecord] = []
     bar = tqdm(total=total, desc="episodes", unit="ep", disable=not settings.progress)
@@ -202,15 +212,24 @@ def evaluate(settings: EvalSettings) -> Evaluation:
             model = ds.model(key, viewspaces=settings.viewspaces)
             if not model.gt_hull_volume > 0:
                 info.flat.append(key)
-            for method, check, vs, start in jobs:
-                rng = episode_rng(settings.seed, method, check or "", key, vs, start)
-                policy = make_policy(method, ctx, rng)
-                if check is not None:
-                    policy = disturbed(check, policy, rng, settings.disturb_radius)
-                records.append(
-                    run_record(model, vs, start, method, policy, info.name, settings.n_views, check)
-                )
-                bar.update()
+            done = log.done.get((info.name, key))
+            if done is None:
+                done = []
+                for method, check, vs, start in jobs:
+                    rng = episode_rng(settings.seed, method, check or "", key, vs, start)
+                    policy = make_policy(method, ctx, rng)
+                    if check is not None:
+                        policy = disturbed(check, policy, rng, settings.disturb_radius)
+                    done.append(
+                        run_record(
+                            model, vs, start, method, policy, info.name, settings.n_views, check
+                        )
+                    )
+                    bar.update()
+                log.append(info.name, key, done)
+            else:
+                bar.update(len(jobs))
+            records += done
     bar.close()
     return Evaluation(settings, records, skipped, [info for info, _ in opened],
                       time.perf_counter() - t0)  # fmt: skip

@@ -69,6 +69,13 @@ class EpisodeRecord:
         out["vig"] = [None if not np.isfinite(v) else v for v in self.vig]
         return out
 
+    @classmethod
+    def from_json(cls, values: dict) -> EpisodeRecord:
+        """The inverse of :meth:`to_json` (None in ``vig`` becomes NaN)."""
+        values = dict(values)
+        values["vig"] = [np.nan if v is None else float(v) for v in values["vig"]]
+        return cls(**values)
+
 
 def episode_rng(seed: int, *names: str | int) -> np.random.Generator:
     """A generator seeded by ``seed`` and names (strings hashed with CRC-32, ints as they are)."""
