@@ -126,15 +126,16 @@ class NetworkPolicy:
         Raises:
             nbv.net.CheckpointError: the file is missing or unusable (the message names it).
         """
-        from nbv.net import load_checkpoint
+        from nbv.net import for_inference, load_checkpoint
 
         net, extra = load_checkpoint(path, n_views=n_views)
+        precision = precision or str(extra.get("precision", "fp32"))
         return cls(
-            net,
+            for_inference(net, precision),
             input=str(extra.get("input", "points")),
             n_points=int(extra.get("eval_points", 1024)),
             lmax=int(extra.get("lmax", 3)),
-            precision=precision or str(extra.get("precision", "fp32")),
+            precision=precision,
         )
 
     def fresh(self) -> NetworkPolicy:
@@ -164,13 +165,13 @@ class NetworkPolicy:
         """
         import torch
 
-        from nbv.net import autocast, masked_argmax
+        from nbv.net import autocast, flush_denormals, masked_argmax
 
         t0 = time.perf_counter()
         points = self.features(cloud)
         t1 = time.perf_counter()
-        with torch.no_grad(), autocast(self.precision, next(self.model.parameters()).device):
-            device = next(self.model.parameters()).device
+        device = next(self.model.parameters()).device
+        with torch.no_grad(), flush_denormals(), autocast(self.precision, device):
             x = torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32))[None]
             s = torch.from_numpy(np.asarray(view_state, dtype=bool))[None]
             scores = self.model(x.to(device), s.float().to(device)).cpu()

@@ -19,6 +19,8 @@ from nbv.net import (
     PCNBVConfig,
     autocast,
     count_parameters,
+    flush_denormals,
+    for_inference,
     knn_indices,
     load_checkpoint,
     masked_argmax,
@@ -538,3 +540,35 @@ def test_bf16_autocast_keeps_neighbours_and_head_in_fp32() -> None:
     assert torch.equal(idx.sort(-1).values, knn_indices(features, 6).sort(-1).values)
     with autocast("fp32"), torch.no_grad():
         assert torch.equal(model(points, state), exact)
+
+
+def test_inference_copy_folds_batch_norm_and_predicts_the_same() -> None:
+    torch.manual_seed(0)
+    model = tiny(n_views=9)
+    train_steps(model, 5)  # batch-norm running statistics away from their defaults
+    model.eval()
+    points, state, _ = random_batch(3, 40, 9, seed=1)
+    with torch.no_grad():
+        exact = model(points, state)
+        fast = for_inference(model, "fp32")
+        torch.testing.assert_close(fast(points, state), exact, rtol=1e-5, atol=1e-6)
+        assert not any(isinstance(m, torch.nn.BatchNorm1d) for m in fast.modules())
+        assert all(not p.requires_grad for p in fast.parameters())
+        half = for_inference(model, "bf16")
+        assert half.convs[0].linear.weight.dtype == torch.bfloat16
+        assert half.head[0].weight.dtype == torch.float32
+        with autocast("bf16"):
+            approx = half(points, state)
+        assert torch.allclose(approx, exact, atol=0.05 * exact.abs().max().item())
+    # The original is untouched.
+    assert model.convs[0].norm is not None and model.convs[0].linear.weight.requires_grad
+
+
+def test_flush_denormals_is_scoped() -> None:
+    tiny_value = torch.tensor([1e-40])
+    with flush_denormals():
+        flushed = (tiny_value * 1.0).item()
+    assert (tiny_value * 1.0).item() > 0.0
+    supported = torch.set_flush_denormal(False)  # True where the CPU has FTZ/DAZ (x86)
+    if supported:
+        assert flushed == 0.0
