@@ -30,8 +30,12 @@ def _cube_corners(half: float) -> np.ndarray:
     )
 
 
-def _reference_greedy(sets: np.ndarray, n_iter: int, exclude=()) -> tuple[list[int], list[int]]:
-    """Algorithm 3 on plain booleans, written independently of the bit-packed version."""
+def _reference_greedy(
+    sets: np.ndarray, n_iter: int, exclude=(), positions=None
+) -> tuple[list[int], list[int]]:
+    """Algorithm 3 on plain booleans, written independently of the bit-packed version. With
+    ``positions``, a pick that gains nothing is the open view farthest in angle from the closed
+    ones (ties within 1e-9 rad: the lowest index)."""
     covered = np.zeros(sets.shape[1], dtype=bool)
     closed = np.zeros(len(sets), dtype=bool)
     for v in exclude:
@@ -42,6 +46,8 @@ def _reference_greedy(sets: np.ndarray, n_iter: int, exclude=()) -> tuple[list[i
         new = (sets & ~covered).sum(axis=1)
         new[closed] = -1
         best = int(np.argmax(new))
+        if new[best] == 0 and positions is not None:
+            best = _farthest_in_angle(positions, closed)
         views.append(best)
         gains.append(int(new[best]))
         closed[best] = True
@@ -49,17 +55,45 @@ def _reference_greedy(sets: np.ndarray, n_iter: int, exclude=()) -> tuple[list[i
     return views, gains
 
 
+def _farthest_in_angle(positions: np.ndarray, closed: np.ndarray) -> int:
+    """The open view whose smallest angle to a closed view is largest (lowest index on ties)."""
+    unit = positions / np.linalg.norm(positions, axis=1, keepdims=True)
+    best, best_angle = -1, -1.0
+    for v in np.flatnonzero(~closed):
+        cosines = unit[closed] @ unit[v]
+        angle = float(np.arccos(np.clip(cosines, -1.0, 1.0)).min()) if closed.any() else np.pi
+        if angle > best_angle + 1e-9:
+            best, best_angle = int(v), angle
+    return best
+
+
 def _union_size(sets: np.ndarray, views) -> int:
     return int(sets[list(views)].any(axis=0).sum()) if len(views) else 0
 
 
-def _brute_force_visibility(samples, normals, poses, intrinsics) -> np.ndarray:
-    """Per view with nbv.camera.project: facing the camera and inside the image."""
+def _brute_force_visibility(samples, normals, poses, intrinsics, margin=0.0) -> np.ndarray:
+    """Per view with nbv.camera.project: facing the camera and inside the image; with a margin,
+    within ``margin`` (world units) of each plane through the camera centre and an image
+    border."""
+    k = intrinsics
     seen = np.zeros((len(poses), len(samples)), dtype=bool)
     for v, pose in enumerate(poses):
-        uv, z = project(samples, intrinsics, pose)
-        inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= intrinsics.width - 1)
-        inside &= (uv[:, 1] >= 0) & (uv[:, 1] <= intrinsics.height - 1)
+        uv, z = project(samples, k, pose)
+        if margin == 0.0:
+            inside = (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= k.width - 1)
+            inside &= (uv[:, 1] >= 0) & (uv[:, 1] <= k.height - 1)
+        else:
+            # Distance to the plane through the centre and the border u = b (camera frame):
+            # (fx x - (b - cx) z) / |(fx, b - cx)|, with x = (u - cx) z / fx.
+            inside = z > 0
+            for coord, f, c, last in (
+                (uv[:, 0], k.fx, k.cx, k.width - 1),
+                (uv[:, 1], k.fy, k.cy, k.height - 1),
+            ):
+                lateral = (coord - c) * z / f
+                for border, sign in ((0.0, 1.0), (last, -1.0)):
+                    signed = sign * (f * lateral - (border - c) * z) / np.hypot(f, border - c)
+                    inside &= signed >= -margin
         facing = ((pose[:3, 3] - samples) * normals).sum(axis=1) > 1e-9
         seen[v] = inside & facing
     return seen
@@ -165,6 +199,57 @@ def test_greedy_ties_go_to_the_lowest_index():
     sets = np.ones((4, 10), dtype=bool)
     assert sco.greedy_max_coverage(sets, 3) == ([0, 1, 2], [10, 0, 0])
     assert sco.greedy_max_coverage(sets, 3, exclude=[1]) == ([0, 2, 3], [0, 0, 0])
+
+
+def _circle(degrees) -> np.ndarray:
+    angle = np.radians(degrees)
+    return np.stack([np.cos(angle), np.sin(angle), np.zeros_like(angle)], axis=1)
+
+
+def test_greedy_spreads_zero_gain_picks_by_angle():
+    # Views on a circle (degrees); view 0 is visited, view 1 has the one element left.
+    positions = 2.0 * _circle([0, 10, 20, 90, 180, 270, 135])
+    sets = np.zeros((7, 5), dtype=bool)
+    sets[0, 1:] = True
+    sets[1, 0] = True
+    # By index: 1 (gain 1), then 2, 3, 4.
+    assert sco.greedy_max_coverage(sets, 4, exclude=(0,)) == ([1, 2, 3, 4], [1, 0, 0, 0])
+    # Spread: 1; then 180 (170 degrees from {0, 10}); then 270 (90) before 90 (80); then 90.
+    spread = sco.greedy_max_coverage(sets, 4, exclude=(0,), positions=positions)
+    assert spread == ([1, 4, 5, 3], [1, 0, 0, 0])
+    assert spread[0] == _reference_greedy(sets, 4, [0], positions)[0]
+    # Only the directions count, not the distances.
+    scaled = positions * np.array([1.0, 3.0, 0.5, 2.0, 1.0, 7.0, 1.0])[:, None]
+    assert sco.greedy_max_coverage(sets, 4, exclude=(0,), positions=scaled) == spread
+    # Ties go to the lowest index: 90 and 270 are both 90 degrees from {0, 180}.
+    nothing = np.zeros((7, 5), dtype=bool)
+    assert sco.greedy_max_coverage(nothing, 4, exclude=(0,), positions=positions) == (
+        [4, 3, 5, 6],
+        [0, 0, 0, 0],
+    )
+    # Nothing visited and nothing to cover: the first pick is view 0, then its opposite.
+    assert sco.greedy_max_coverage(nothing, 2, positions=positions)[0] == [0, 4]
+
+
+def test_greedy_rejects_bad_positions():
+    sets = np.ones((3, 5), dtype=bool)
+    with pytest.raises(ValueError, match="positions"):
+        sco.greedy_max_coverage(sets, 2, positions=np.ones((2, 3)))
+    with pytest.raises(ValueError, match="positions"):
+        sco.greedy_max_coverage(sets, 2, positions=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="positions"):
+        sco.greedy_max_coverage(sets, 2, positions=np.full((3, 3), np.nan))
+
+
+def test_greedy_spread_matches_reference_on_random_viewspaces():
+    rng = np.random.default_rng(14)
+    for _ in range(20):
+        positions = rng.normal(size=(15, 3))
+        sets = rng.random((15, 12)) < 0.2
+        exclude = tuple(int(v) for v in rng.choice(15, int(rng.integers(0, 3)), replace=False))
+        expected = _reference_greedy(sets, 10, exclude, positions)
+        assert sco.greedy_max_coverage(sets, 10, exclude, positions) == expected
+        assert expected[1][-3:] == [0, 0, 0]  # the fill was exercised
 
 
 def test_greedy_exclude_removes_the_visited_views_elements():
@@ -289,10 +374,17 @@ def test_sample_hull_rejects_bad_arguments():
 # --------------------------------------------------------------------------------------------
 
 
-def _both_analytic(hull, samples, normals, faces, poses, intrinsics=K):
-    per_sample = sco.view_sets(samples, normals, poses, intrinsics)
-    per_face = sco.view_sets(samples, normals, poses, intrinsics, hull=hull, face_ids=faces)
+def _both_analytic(hull, samples, normals, faces, poses, intrinsics=K, margin=0.0):
+    """The visible sets by sample and by triangle, which must agree."""
+    per_sample = sco.analytic_visibility(samples, normals, poses, intrinsics, margin)
+    per_face = sco.analytic_visibility_faces(hull, samples, faces, poses, intrinsics, margin)
     assert np.array_equal(per_sample, per_face)
+    if margin == 0.0:
+        assert np.array_equal(per_sample, sco.view_sets(samples, normals, poses, intrinsics))
+        exact = sco.view_sets(
+            samples, normals, poses, intrinsics, hull=hull, face_ids=faces, dilate=False
+        )
+        assert np.array_equal(per_sample, exact)
     return per_sample
 
 
@@ -351,7 +443,7 @@ def test_analytic_paths_agree_with_projection_brute_force():
     assert np.array_equal(_both_analytic(hull, samples, normals, faces, poses), expected)
     # Samples in any order: the per-triangle path does not need them grouped.
     perm = rng.permutation(len(samples))
-    shuffled = sco.view_sets(samples[perm], normals[perm], poses, hull=hull, face_ids=faces[perm])
+    shuffled = sco.analytic_visibility_faces(hull, samples[perm], faces[perm], poses, K)
     assert np.array_equal(shuffled, expected[:, perm])
     # A smaller, off-centre image.
     small = Intrinsics(200, 100, 150.0, 160.0, 80.0, 60.0)
@@ -359,6 +451,129 @@ def test_analytic_paths_agree_with_projection_brute_force():
     assert np.array_equal(
         _both_analytic(hull, samples, normals, faces, poses, small), expected_small
     )
+
+
+def test_analytic_margin_widens_the_image_by_a_distance():
+    points = _fibonacci_sphere(400) * [0.5, 0.45, 0.48] + [0.02, -0.03, 0.01]
+    hull = sco.convex_hull(points)
+    samples, normals, faces = sco.sample_on_hull(hull, 8000, rng=3)
+    poses = viewspace_poses(original_viewspace())
+    for intrinsics in (K, Intrinsics(200, 100, 150.0, 160.0, 80.0, 60.0)):
+        exact = _both_analytic(hull, samples, normals, faces, poses, intrinsics)
+        wide = _both_analytic(hull, samples, normals, faces, poses, intrinsics, margin=0.03)
+        expected = _brute_force_visibility(samples, normals, poses, intrinsics, margin=0.03)
+        assert np.array_equal(wide, expected)
+        assert np.all(wide >= exact) and (wide & ~exact).sum() > 100
+    with pytest.raises(ValueError, match="margin"):
+        sco.analytic_visibility(samples, normals, poses, K, margin=-1.0)
+
+
+def _expected_near_pairs(hull, samples, faces, eps) -> set[tuple[int, int]]:
+    tri = hull.points[hull.simplices]
+    dist = _point_triangle_distance(samples, tri)  # (n, F)
+    dist[np.arange(len(samples)), faces] = np.inf
+    return {(int(i), int(t)) for i, t in zip(*np.nonzero(dist <= eps), strict=True)}
+
+
+def _near_pairs(near: sco.NearTriangles, faces) -> set[tuple[int, int]]:
+    sizes = np.diff(near.starts)
+    assert np.all(sizes > 0) and near.starts[0] == 0 and near.starts[-1] == len(near.sample)
+    own, other = np.repeat(near.own, sizes), np.repeat(near.other, sizes)
+    assert np.array_equal(faces[near.sample], own) and np.all(own != other)
+    groups = list(zip(near.own.tolist(), near.other.tolist(), strict=True))
+    assert groups == sorted(set(groups))
+    pairs = set(zip(near.sample.tolist(), other.tolist(), strict=True))
+    assert len(pairs) == len(near.sample)
+    return pairs
+
+
+@pytest.mark.parametrize("shape", ["blob", "slab", "cube", "fine", "cap"])
+def test_near_triangles_match_brute_force_distances(shape):
+    rng = np.random.default_rng(12)
+    if shape == "blob":
+        points = rng.normal(size=(60, 3)) * [0.3, 0.2, 0.25]
+    elif shape == "fine":  # triangles smaller than eps
+        points = 0.3 * _fibonacci_sphere(300)
+    elif shape == "cap":  # small triangles on the dome, large ones across the base
+        dome = _fibonacci_sphere(600)
+        points = 0.3 * dome[dome[:, 2] > 0.0]
+    elif shape == "slab":
+        # Thinner than eps: every sample is within eps of the opposite face.
+        points = rng.uniform(-1.0, 1.0, (40, 3)) * [0.3, 0.2, 0.0] + [0.0, 0.0, 0.004]
+        points = np.vstack([points, points * [1.0, 1.0, -1.0]])
+    else:
+        points = _cube_corners(0.2)  # two triangles per face: the diagonals pair them
+    hull = sco.convex_hull(points)
+    samples, _, faces = sco.sample_on_hull(hull, 3000, rng=5)
+    eps = 0.03
+    expected = _expected_near_pairs(hull, samples, faces, eps)
+    near = sco.near_triangles(hull, samples, faces, eps)
+    assert _near_pairs(near, faces) == expected and len(expected) > 100
+    assert near.eps == eps
+    # Samples in any order.
+    perm = rng.permutation(len(samples))
+    shuffled = sco.near_triangles(hull, samples[perm], faces[perm], eps)
+    assert {(int(perm[i]), t) for i, t in _near_pairs(shuffled, faces[perm])} == expected
+
+
+def _small_raycast_setup(points, n_samp=3000):
+    hull = sco.convex_hull(points)
+    samples, normals, faces = sco.sample_on_hull(hull, n_samp, rng=6)
+    return hull, samples, normals, faces
+
+
+SMALL = Intrinsics.centred(160, 120, 119.0)  # the field of view of K, pixels 4x farther apart
+
+
+@pytest.mark.parametrize("shape", ["sphere", "box", "slab"])
+def test_dilation_captures_exactly_what_the_pixels_capture(shape):
+    """Off the visible part, the dilated analytic sets are the ray-cast sets: the pixels of the
+    ray-cast views, solved analytically. A sphere larger than the image (borders), a box, and
+    a slab thinner than eps (its back lies within eps of its front)."""
+    rng = np.random.default_rng(13)
+    eps = 0.03
+    if shape == "sphere":
+        points = 0.62 * _fibonacci_sphere(600)
+    elif shape == "box":
+        points = rng.uniform(-1.0, 1.0, (200, 3)) * [0.35, 0.2, 0.3]
+    else:
+        points = rng.uniform(-1.0, 1.0, (60, 3)) * [0.4, 0.3, 0.0] + [0.0, 0.0, 0.01]
+        points = np.vstack([points, points * [1.0, 1.0, -1.0]])
+    hull, samples, normals, faces = _small_raycast_setup(points)
+    poses = viewspace_poses(original_viewspace())
+    visible = sco.view_sets(samples, normals, poses, SMALL, hull=hull, face_ids=faces, dilate=False)
+    dilated = sco.view_sets(samples, normals, poses, SMALL, eps=eps, hull=hull, face_ids=faces)
+    raycast = sco.view_sets(samples, normals, poses, SMALL, "raycast", eps, hull)
+    assert np.all(dilated >= visible)
+    added = dilated & ~visible
+    assert added.sum() > 50
+    facing = np.einsum("vij,ij->vi", poses[:, None, :3, 3] - samples, normals) > 0
+    if shape == "sphere":
+        assert (added & facing).any()  # just outside the image
+    assert (added & ~facing).any()  # just behind the silhouette
+    # Off the visible part: the same, up to float32 rendering. On it, the analytic sets keep
+    # what faces seen obliquely may lose between pixels: nothing captured is missed.
+    assert ((dilated != raycast) & ~visible).sum() <= 2
+    assert (raycast & ~dilated).sum() <= 2
+    near = sco.near_triangles(hull, samples, faces, eps)
+    again = sco.dilate_view_sets(visible, samples, faces, hull, near, poses, SMALL)
+    assert np.array_equal(again, dilated)
+
+
+def test_dilation_behind_an_edge_needs_a_pixel():
+    """Just behind a silhouette edge, all within eps of the facing side, which is seen so
+    obliquely that its pixels' points lie farther apart than eps: a sample is captured only
+    where a pixel's point comes that close, as in the rendered view."""
+    hull, samples, normals, faces = _small_raycast_setup(_cube_corners(0.2), 20000)
+    # Just above the top face: it is seen at about 5 degrees, its far edge is a silhouette.
+    poses = viewspace_poses(np.array([[1.0, 0.0, 0.28]]))
+    visible = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=False)
+    dilated = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces)
+    raycast = sco.view_sets(samples, normals, poses, method="raycast", hull=hull)
+    behind = (normals[:, 0] < -0.5) & (samples[:, 2] > 0.2 - DEFAULT_EPS)  # on -x, by the edge
+    assert not visible[0, behind].any()
+    assert 0 < dilated[0, behind].sum() < behind.sum()
+    assert np.array_equal(dilated[0, behind], raycast[0, behind])
 
 
 def test_view_sets_rejects_bad_arguments():
@@ -373,6 +588,10 @@ def test_view_sets_rejects_bad_arguments():
         sco.view_sets(samples, normals, poses[:, :3])
     with pytest.raises(ValueError, match="face_ids"):
         sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces[:5])
+    with pytest.raises(ValueError, match="dilate=True"):
+        sco.view_sets(samples, normals, poses, dilate=True)
+    with pytest.raises(ValueError, match="eps"):
+        sco.view_sets(samples, normals, poses, eps=-0.1, hull=hull, face_ids=faces)
 
 
 # --------------------------------------------------------------------------------------------
@@ -380,47 +599,55 @@ def test_view_sets_rejects_bad_arguments():
 # --------------------------------------------------------------------------------------------
 
 
+def _single_view_hull_points(view: int) -> np.ndarray:
+    """What one full-resolution view of a synthetic chair sees, as the dataset renders it."""
+    from nbv import meshes, synthetic
+    from nbv.camera import backproject
+    from nbv.render import render_raycast
+
+    entry = next(e for e in synthetic.catalogue() if e.category == "chair")
+    mesh, _, _ = meshes.normalise(meshes.Mesh(*synthetic.build(entry, 0)))
+    pose = viewspace_poses(original_viewspace())[view]
+    depth = render_raycast(mesh.vertices, mesh.faces, pose[None], K)
+    return backproject(depth[0], K, pose)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("name", "min_agreement"),
-    [("sphere", 0.99), ("box", 0.98)],
+    [("sphere", 0.99), ("box", 0.99), ("chair view 1", 0.985), ("chair view 20", 0.985)],
 )
-def test_analytic_matches_raycast_up_to_borders(name, min_agreement):
-    """Full 640 x 480 images, eps = DEFAULT_EPS, all 33 views. The two differ only at borders:
-    the ray-cast sets add samples within eps of the seen part (behind the silhouette, just
-    outside the image), the analytic sets keep samples on faces seen so obliquely that the
-    pixels' points on them lie farther apart than eps."""
+def test_analytic_matches_raycast_up_to_oblique_faces(name, min_agreement):
+    """Full 640 x 480 images, eps = DEFAULT_EPS, all 33 views, on a sphere, a box and hulls of
+    single views. Everything the ray-cast sets hold, the dilated analytic sets hold too, and off
+    the visible part they are the same (the dilation is exact per pixel). They differ on faces
+    seen so obliquely that the pixels' points on them lie farther apart than eps: the analytic
+    sets keep all of such a face."""
     rng = np.random.default_rng(5)
     if name == "sphere":
         points = 0.45 * _fibonacci_sphere(1000)
-    else:
+    elif name == "box":
         points = rng.uniform(-1.0, 1.0, (200, 3)) * [0.35, 0.2, 0.3]
+    else:
+        points = _single_view_hull_points(int(name.split()[-1]))
     hull = sco.convex_hull(points)
     samples, normals, faces = sco.sample_on_hull(hull, 4096, rng=4)
     poses = viewspace_poses(original_viewspace())
+    visible = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=False)
     analytic = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces)
     raycast = sco.view_sets(samples, normals, poses, method="raycast", hull=hull)
     assert (analytic == raycast).mean() >= min_agreement
-
-    tri = hull.points[hull.simplices]
-    centres = poses[:, :3, 3]
-    only_raycast = raycast & ~analytic
-    for v, i in zip(*np.nonzero(only_raycast), strict=True):
-        facing = (centres[v] - samples[i]) @ normals[i] > 0
-        if not facing:
-            # Behind the silhouette: within eps of a triangle turned to the camera.
-            turned = hull.equations[:, :3] @ centres[v] + hull.equations[:, 3] > 0
-            assert _point_triangle_distance(samples[i][None], tri[turned]).min() < DEFAULT_EPS
-        else:
-            # Just outside the image: within eps (in pixels at its depth) of the border.
-            uv, z = project(samples[i][None], K, poses[v])
-            margin = DEFAULT_EPS * K.fx / z[0]
-            assert -margin <= uv[0, 0] <= K.width - 1 + margin
-            assert -margin <= uv[0, 1] <= K.height - 1 + margin
-    # Only on faces seen so obliquely that the pixel spacing stretched along the face (depth
-    # over focal length, over the cosine of the viewing angle) exceeds eps.
+    assert (analytic == raycast).mean() > (visible == raycast).mean()
+    # Up to float32 rendering: nothing the pixels capture is missed ...
+    assert (raycast & ~analytic).mean() < 1e-3
+    # ... and off the visible part the two are the same.
+    assert ((analytic != raycast) & ~visible).mean() < 1e-3
+    # The rest: visible samples on faces seen so obliquely that the pixel spacing stretched
+    # along the face (depth over focal length, over the cosine of the viewing angle) exceeds
+    # eps.
     v, i = np.nonzero(analytic & ~raycast)
-    ray = centres[v] - samples[i]
+    assert np.all(visible[v, i])
+    ray = poses[v, :3, 3] - samples[i]
     cosine = (ray * normals[i]).sum(axis=1) / np.linalg.norm(ray, axis=1)
     depth = (-ray * poses[v, :3, 2]).sum(axis=1)
     assert np.all(depth / K.fx / cosine > DEFAULT_EPS)
@@ -449,12 +676,24 @@ def test_plan_on_a_cube_is_greedy_and_deterministic():
     assert set(result.timings) == {"hull", "sampling", "simulation", "sets", "greedy", "total"}
     assert all(t >= 0 for t in result.timings.values())
     # The same sets computed step by step give the same plan and covered fraction.
-    samples, normals, _ = sco.sample_hull(points, 8192, rng=11)
-    sets = sco.view_sets(samples, normals, viewspace_poses(viewspace))
-    assert (result.views, result.gains) == _reference_greedy(sets, 9, [0])
+    hull = sco.convex_hull(points)
+    samples, normals, faces = sco.sample_on_hull(hull, 8192, rng=11)
+    sets = sco.view_sets(samples, normals, viewspace_poses(viewspace), hull=hull, face_ids=faces)
+    assert (result.views, result.gains) == _reference_greedy(sets, 9, [0], viewspace)
     assert result.covered_fraction == _union_size(sets, [0, *result.views]) / 8192
-    # Every face of the cube is seen by some view: the plan covers the whole hull.
+    # Every face of the cube is seen by some view: the plan covers the whole hull ...
     assert result.covered_fraction == 1.0
+    # ... before its last picks, which then spread out over the viewspace instead of taking
+    # the lowest indices.
+    zero = result.gains.index(0)
+    assert zero < 9
+    closed = np.zeros(len(viewspace), dtype=bool)
+    closed[[0, *result.views[:zero]]] = True
+    for view in result.views[zero:]:
+        assert view == _farthest_in_angle(viewspace, closed)
+        closed[view] = True
+    by_index = np.flatnonzero(~np.isin(np.arange(len(viewspace)), [0, *result.views[:zero]]))
+    assert result.views[zero:] != by_index[: 9 - zero].tolist()
     again = sco.plan(points, viewspace, exclude=(0,), n_samp=8192, rng=11)
     assert (again.views, again.gains) == (result.views, result.gains)
 
