@@ -212,10 +212,24 @@ def run(render: bool = True, seed: int = 0) -> list[dict]:
         0.001,
         "packed bits vs Python sets",
     )
-    row("whole 9-view plan (hull+sim+sets+greedy), 2048-point start view", lambda: sco.plan(
-            start_cloud, original_viewspace(), exclude=(1,), poses=scene["poses"]),
-        lambda: sco.plan(start_cloud, original_viewspace(), exclude=(1,), poses=scene["poses"],
-                         method="raycast"), 0.050, "analytic vs ray-cast simulation")  # fmt: skip
+
+    def plan(**kw) -> sco.Plan:
+        return sco.plan(start_cloud, original_viewspace(), exclude=(1,), poses=scene["poses"], **kw)
+
+    row(
+        "whole 9-view plan (hull+sim+sets+greedy), 2048-point start view",
+        plan,
+        lambda: plan(method="raycast"),
+        0.050,
+        "analytic vs ray-cast simulation",
+    )
+    row(
+        "whole 9-view plan with eps-dilated sets",
+        lambda: plan(dilate=True),
+        lambda: plan(method="raycast"),
+        0.050,
+        "dilated analytic vs ray-cast simulation",
+    )
     if render:
         import tempfile
 

@@ -28,7 +28,7 @@ from nbv.eval.config import (
 from nbv.eval.disturb import auc_changes, permuted_state, random_ball
 from nbv.eval.evaluate import EvalDataError, evaluate, run
 from nbv.eval.prepare import prepare_meshes
-from nbv.eval.protocol import episode_rng
+from nbv.eval.protocol import Context, episode_rng, make_policy
 from nbv.eval.report import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
 
@@ -242,6 +242,7 @@ def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_pa
         (dict(disturb={"checks": ["noise"], "viewspace": ["original"], "radius": 0.5}),
          "disturb.checks: unknown 'noise'"),
         (dict(hull={"simulation": "guess"}), "hull.simulation: unknown 'guess'"),
+        (dict(hull={"dilate": "yes"}), "hull.dilate='yes': must be true or false"),
         (dict(n_views=1), "n_views=1"),
         (dict(colour="red"), "unknown keys ['colour']"),
         (dict(checkpoints={"pcnbv": "a.pt", "dqn": "b.pt"}), "checkpoints: unknown ['dqn']"),
@@ -282,6 +283,8 @@ def test_default_config_composes_to_the_documented_defaults():
     assert s.checkpoints["pcnbv"] == "outputs/train/pcnbv_coverage_fold0/best.pt"
     assert s.checkpoints["pcnbv_sph"] == "outputs/train/pcnbv_sph_coverage_fold0/best.pt"
     assert s.check_start_views == (1, 10, 24)
+    assert s.hull == HullSettings() and s.hull.dilate is False
+    assert compose_with(["hull.dilate=true"]).hull.dilate is True
     with_meshes = compose_with(["mesh_dir=" + str(ROOT / "tests")])
     assert with_meshes.datasets == ("unseen", "meshes")
 
@@ -346,3 +349,11 @@ def test_interrupted_evaluation_resumes_from_its_log(tiny, tmp_path):
     evaluate(replace(settings, seed=7))
     assert (tmp_path / "out" / "episodes.jsonl.stale").exists()
     assert log.read_text().count('{"done"') == 2
+
+
+def test_hull_policies_get_the_dilation_setting():
+    for dilate in (False, True):
+        ctx = Context({}, HullSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
+        for method in ("hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan"):
+            policy = make_policy(method, ctx, np.random.default_rng(0))
+            assert policy.dilate is dilate and policy.eps == 0.03, method

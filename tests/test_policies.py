@@ -137,19 +137,18 @@ def test_random_policy_is_seeded(model):
 
 def test_one_shot_planner_is_the_plan_of_the_start_view(model):
     view = model.views["original"]
-    policy = HullSCOPolicy(np.random.default_rng(11), intrinsics=SMALL_CAMERA, n_samp=4096)
-    episode = run_episode(model, "original", 10, policy)
-    expected = sco.plan(
-        view.view_points(10),
-        view.poses[:, :3, 3],
-        n_iter=9,
-        exclude=[10],
-        n_samp=4096,
-        rng=np.random.default_rng(11),
-        intrinsics=SMALL_CAMERA,
-        poses=view.poses,
-    )
-    assert episode.views == [10, *expected.views]
+    plans = {}
+    for dilate in (False, True):
+        # eps about the small camera's pixel spacing: the dilation changes this plan.
+        kw = dict(n_samp=4096, intrinsics=SMALL_CAMERA, eps=0.02, dilate=dilate)
+        episode = run_episode(model, "original", 10, HullSCOPolicy(np.random.default_rng(11), **kw))
+        rng = np.random.default_rng(11)
+        expected = sco.plan(
+            view.view_points(10), view.poses[:, :3, 3], 9, [10], rng=rng, poses=view.poses, **kw
+        )
+        assert episode.views == [10, *expected.views]
+        plans[dilate] = episode.views
+    assert plans[False] != plans[True]
 
 
 def test_sph_planner_plans_on_the_signature(model):

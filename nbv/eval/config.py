@@ -53,6 +53,7 @@ class HullSettings:
 
     n_samp: int = 16384
     simulation: str = "analytic"
+    dilate: bool = False
     lmax: int = 3
     probes: int = 3
     probe_points: int = 100
@@ -114,6 +115,7 @@ class EvalSettings:
             ("threads", self.threads, self.threads >= 0, "an integer >= 0 (0 = torch's default)"),
             ("disturb.radius", self.disturb_radius, self.disturb_radius > 0, "a positive distance"),
             ("hull.n_samp", h.n_samp, h.n_samp >= 1, "an integer >= 1"),
+            ("hull.dilate", h.dilate, isinstance(h.dilate, bool), "true or false"),
             ("hull.lmax", h.lmax, h.lmax >= 0, "an integer >= 0"),
             ("hull.probes", h.probes, h.probes >= 0, "an integer >= 0"),
             ("hull.probe_points", h.probe_points, h.probe_points >= 1, "an integer >= 1"),
@@ -220,7 +222,8 @@ def settings_from_config(cfg) -> EvalSettings:
     prep = _section(c, "prepare", {"dir", "backend", "blender", "camera", "n_gt", "eps",
                                    "points_per_view", "seed"})  # fmt: skip
     camera = prep.get("camera", {})
-    hull = _section(c, "hull", {"n_samp", "simulation", "lmax", "probes", "probe_points"})
+    hull = _section(c, "hull", {"n_samp", "simulation", "dilate", "lmax", "probes",
+                                "probe_points"})  # fmt: skip
     disturb = _section(c, "disturb", {"checks", "viewspace", "start_views", "radius"})
     checkpoints = c.get("checkpoints") or {}
     if not isinstance(checkpoints, dict):
@@ -266,6 +269,7 @@ def settings_from_config(cfg) -> EvalSettings:
         hull=HullSettings(
             n_samp=_int(hull.get("n_samp", 16384), "hull.n_samp"),
             simulation=str(hull.get("simulation", "analytic")),
+            dilate=hull.get("dilate", False),
             lmax=_int(hull.get("lmax", 3), "hull.lmax"),
             probes=_int(hull.get("probes", 3), "hull.probes"),
             probe_points=_int(hull.get("probe_points", 100), "hull.probe_points"),

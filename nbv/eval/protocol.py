@@ -91,7 +91,8 @@ class Context:
         networks: method name -> a loaded :class:`NetworkPolicy` (the methods not skipped).
         hull: the convex-hull settings.
         intrinsics: the dataset's camera.
-        eps: the dataset's coverage distance (the hull planner's raycast simulation uses it).
+        eps: the dataset's coverage distance (the hull planner's capture distance: of the
+            raycast simulation, and of the analytic one's dilation with ``hull.dilate``).
         n_views: views per episode.
     """
 
@@ -117,6 +118,7 @@ def make_policy(method: str, ctx: Context, rng: np.random.Generator):
         n_views=ctx.n_views,
         n_samp=hull.n_samp,
         method=hull.simulation,
+        dilate=hull.dilate,
         intrinsics=ctx.intrinsics,
         eps=ctx.eps,
         probe_points=hull.probe_points,
