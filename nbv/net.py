@@ -17,10 +17,11 @@ Internally features are laid out points-last-but-one, ``(B, N, C)``, so every "1
 single matrix product (``nn.Linear``) over the channel axis.
 
 Precision: forward passes may run under bfloat16 autocast (:func:`autocast`, ``"bf16"``), which
-CPUs with AMX or AVX512-BF16 run 1.3-1.5x faster than float32. The neighbour search and the
-fully connected head stay in float32 either way: neighbour ranks and the small differences
-between views' predicted gains are what the output is used for, and bfloat16 keeps only about
-three significant digits.
+CPUs with AMX or AVX512-BF16 run 1.3-1.5x faster than float32. Only the self-attention and the
+wide 1x1 convs use it. The dense EdgeConv feature extractor (with its neighbour search) and the
+fully connected head stay in float32: neighbour ranks and the small differences between views'
+predicted gains are what the output is used for, bfloat16 keeps only about three significant
+digits, and the extractor's narrow products gain nothing from it.
 
 Public API: :class:`PCNBVConfig`, :class:`PCNBV`, :func:`masked_argmax`,
 :func:`count_parameters`, :func:`save_checkpoint`, :func:`load_checkpoint`,
@@ -315,10 +316,13 @@ class FeatureExtractor(nn.Module):
         self.squeeze = nn.ModuleList(_Pointwise(w, c0, bn) for w in widths)
 
     def forward(self, points: Tensor) -> Tensor:
-        features = self.first(points)
-        features = torch.cat([self.blocks[0](features), features], dim=-1)
-        for squeeze, block in zip(self.squeeze, self.blocks[1:], strict=True):
-            features = torch.cat([block(squeeze(features)), features], dim=-1)
+        # float32 even under autocast: its products are too narrow (12-60 channels) for
+        # bfloat16 to pay, and its many small element-wise steps run slower in bfloat16.
+        with _float32(points):
+            features = self.first(points)
+            features = torch.cat([self.blocks[0](features), features], dim=-1)
+            for squeeze, block in zip(self.squeeze, self.blocks[1:], strict=True):
+                features = torch.cat([block(squeeze(features)), features], dim=-1)
         return features
 
 
@@ -429,9 +433,10 @@ def for_inference(model: PCNBV, precision: str = "fp32") -> PCNBV:
     """A copy of ``model`` for fast evaluation-mode forwards: the same predictions, less work.
 
     Batch norm is folded into the 1x1 conv before it (in eval mode it is an affine map per
-    channel), and for ``"bf16"`` (``"auto"`` resolved on the model's device) the convolution and
-    attention weights are stored in bfloat16, so autocast does not cast them again on every
-    call. The fully connected head keeps float32 weights. Parameters do not require grad.
+    channel), and for ``"bf16"`` (``"auto"`` resolved on the model's device) the weights of the
+    attention and of the wide 1x1 convs are stored in bfloat16, so autocast does not cast them
+    again on every call; the feature extractor and the head, which run in float32, keep float32
+    weights. Parameters do not require grad.
 
     Args:
         model: a PCNBV, not modified.
@@ -457,7 +462,7 @@ def for_inference(model: PCNBV, precision: str = "fp32") -> PCNBV:
             module.linear, module.norm = fused.requires_grad_(False), None
     if bf16:
         for name, module in out.named_modules():
-            if isinstance(module, nn.Linear) and not name.startswith("head"):
+            if isinstance(module, nn.Linear) and name.split(".")[0] in ("attention", "convs"):
                 module.to(torch.bfloat16)
     return out
 

@@ -557,6 +557,8 @@ def test_inference_copy_folds_batch_norm_and_predicts_the_same() -> None:
         half = for_inference(model, "bf16")
         assert half.convs[0].linear.weight.dtype == torch.bfloat16
         assert half.head[0].weight.dtype == torch.float32
+        assert half.features.first.linear.weight.dtype == torch.float32
+        assert half.attention.query.weight.dtype == torch.bfloat16
         with autocast("bf16"):
             approx = half(points, state)
         assert torch.allclose(approx, exact, atol=0.05 * exact.abs().max().item())
