@@ -332,7 +332,9 @@ def test_interrupted_evaluation_resumes_from_its_log(tiny, tmp_path):
     # A kill while the second model's records were being written: its done line never came
     # and the last record is torn.
     log.write_text("".join(lines[: done_lines[0] + 2]) + lines[done_lines[0] + 2][:25])
-    second = evaluate(settings).records
+    resumed = evaluate(settings)
+    second = resumed.records
+    assert resumed.resumed == len(first) // 2
     assert [(r.key, r.method, r.start, r.views, r.coverage) for r in second] == [
         (r.key, r.method, r.start, r.views, r.coverage) for r in first
     ]

@@ -59,7 +59,9 @@ class Evaluation:
         records: every episode, the methods' and the checks'.
         skipped: method -> why it did not run.
         datasets: the evaluated datasets.
-        seconds: wall time of the episodes.
+        seconds: wall time of the episodes run by this call.
+        resumed: how many of the records were read back from the episode log of an earlier,
+            interrupted run instead of run again.
     """
 
     settings: EvalSettings
@@ -67,6 +69,7 @@ class Evaluation:
     skipped: dict[str, str]
     datasets: list[DatasetInfo]
     seconds: float
+    resumed: int = 0
 
 
 def _spread(keys: list[str], categories: list[str]) -> list[str]:
@@ -203,6 +206,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         print(f"nbv.eval: resuming: {len(log.done)} models done in {log.path}", file=sys.stderr)
     total = sum(len(info.keys) for info, _ in opened) * len(jobs)
     records: list[EpisodeRecord] = []
+    resumed = 0
     bar = tqdm(total=total, desc="episodes", unit="ep", disable=not settings.progress)
     t0 = time.perf_counter()
     for info, ds in opened:
@@ -229,10 +233,11 @@ def evaluate(settings: EvalSettings) -> Evaluation:
                 log.append(info.name, key, done)
             else:
                 bar.update(len(jobs))
+                resumed += len(done)
             records += done
     bar.close()
     return Evaluation(settings, records, skipped, [info for info, _ in opened],
-                      time.perf_counter() - t0)  # fmt: skip
+                      time.perf_counter() - t0, resumed)  # fmt: skip
 
 
 def run(settings: EvalSettings) -> Path:

@@ -109,6 +109,7 @@ def write_json(evaluation, path: Path) -> None:
         "skipped": evaluation.skipped,
         "datasets": [_jsonable(asdict(d)) for d in evaluation.datasets],
         "seconds": evaluation.seconds,
+        "resumed_episodes": evaluation.resumed,
         "episodes": [_jsonable(r.to_json()) for r in evaluation.records],
     }
     _write(path, json.dumps(data, indent=1, allow_nan=False))
@@ -299,10 +300,15 @@ def report_markdown(evaluation) -> str:
     viewspaces = list(s.viewspaces)
     methods = order_methods(r.method for r in records if r.check is None)
     n_eps = len(records)
+    resumed = (
+        f" ({evaluation.resumed} of them read back from `episodes.jsonl`)"
+        if evaluation.resumed
+        else ""
+    )
     lines = [
         f"# Evaluation `{s.out_dir.name}`",
         "",
-        f"{n_eps} episodes in {evaluation.seconds:.1f} s. Each episode: a start view "
+        f"{n_eps} episodes{resumed}, run in {evaluation.seconds:.1f} s. Each episode: a start view "
         f"({', '.join(map(str, s.start_views))}), then {s.n_views - 1} views chosen by the "
         f"method; coverage (eps from the dataset) and VIG after each view against the "
         f"ground truth; AUC = (c_1 + ... + c_{s.n_views - 1} + 0.5 c_{s.n_views}) / "
