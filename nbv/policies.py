@@ -229,9 +229,8 @@ class HullSCOPolicy:
         n_samp: points drawn on the hull.
         method: view simulation, ``analytic`` (fast) or ``raycast`` (see :mod:`nbv.sco`).
         dilate: with ``analytic``, dilate each view's visible hull points by ``eps``
-            (:mod:`nbv.dilation`): closer to ``raycast``, but slower (a 9-view plan takes
-            about 25 ms instead of 6 ms, and far longer on hulls of many small triangles such
-            as the replanning's merged clouds; see :func:`nbv.sco.plan`). Off by default.
+            (:mod:`nbv.dilation`): closer to ``raycast``, but slower (see :mod:`nbv.sco`).
+            Off by default.
         intrinsics: the camera of the dataset.
         eps: capture distance: of the ``raycast`` simulation, and of the ``analytic`` one's
             dilation with ``dilate`` (the hull points within ``eps`` of a pixel's point count

@@ -611,13 +611,9 @@ def plan(
             caller has them already (they are the same for every plan on one viewspace).
         dilate: with ``"analytic"``, dilate the visible sets by ``eps`` (:mod:`nbv.dilation`):
             the samples within ``eps`` of a pixel's point just behind the silhouette or just
-            outside the image count too, as they do for ``"raycast"``. A trade of time for
-            fidelity: measured at 640 x 480 with 33 views at distance 1, the analytic sets
-            agree with the ray-cast ones on 99.35 % (sphere) and 99.45 % (box) of the
-            (view, sample) pairs with the dilation, 99.07 % and 98.57 % without; but a whole
-            9-view plan takes about 25 ms with it against 6 ms without, and on hulls of
-            thousands of small triangles (merged clouds, as in replanning) the view simulation
-            goes from 11 ms to 350 ms. Off by default. ``"raycast"`` ignores it.
+            outside the image count too, as they do for ``"raycast"``. Closer to ``"raycast"``
+            but about 4x slower, far more on hulls of many small triangles (measured in the
+            module docstring). Off by default. ``"raycast"`` ignores it.
 
     Returns:
         :class:`Plan`.
