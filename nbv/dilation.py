@@ -39,15 +39,15 @@ from scipy.spatial import ConvexHull, cKDTree
 from nbv.camera import Intrinsics
 from nbv.scores import DEFAULT_EPS, as_cloud
 from nbv.visibility import (
-    _FACING_TOL,
     _affine_at,
     _as_face_ids,
     _as_margin,
     _as_poses,
     _frustum_planes,
-    _inside,
     _ranges,
     analytic_visibility_faces,
+    corners_in_image,
+    facing_triangles,
 )
 
 #: A triangle whose bounding ball, grown by eps, holds at most this many samples (expected)
@@ -577,8 +577,7 @@ def dilate_view_sets(
     if seen.shape != (len(poses), len(samples)):
         raise ValueError(f"seen must have shape {(len(poses), len(samples))}, got {seen.shape}")
     seen = seen.copy()
-    normal, offset = hull.equations[:, :3], hull.equations[:, 3]
-    facing = poses[:, :3, 3] @ normal.T + offset > _FACING_TOL  # (V, F)
+    facing = facing_triangles(hull, poses)  # (V, F)
     # Behind the silhouette: own triangle turned away, the nearby one facing.
     hit_view, hit_group = np.nonzero(facing[:, near.other] & ~facing[:, near.own])
     lengths = np.diff(near.starts)[hit_group]
@@ -586,10 +585,7 @@ def dilate_view_sets(
     picks = [near.sample[_ranges(near.starts[hit_group], lengths)]]
     triangles = [np.repeat(near.other[hit_group], lengths)]
     # Outside the image: only views the hull's corners do not all project into.
-    corners = hull.points[hull.vertices]
-    planes = _frustum_planes(poses, intrinsics)
-    signed = planes[..., :3].reshape(-1, 3) @ corners.T + planes[..., 3].reshape(-1, 1)
-    cut = np.flatnonzero(~_inside(signed.reshape(len(poses), 5, -1)).all(axis=1))
+    cut = np.flatnonzero(~corners_in_image(hull, _frustum_planes(poses, intrinsics)).all(axis=1))
     if cut.size:
         wide = analytic_visibility_faces(
             hull, samples, face_ids, poses[cut], intrinsics, margin=near.eps

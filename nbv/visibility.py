@@ -7,7 +7,8 @@ of :mod:`nbv.camera`) in front of the camera. Both are sign tests of dot product
 camera centre, and with the five half-spaces of each camera's image (:func:`_frustum_planes`,
 planes through the camera centre), for all views and points at once
 (:func:`analytic_visibility`). On the samples of a convex hull, :func:`analytic_visibility_faces`
-gives the same answer with much less work by deciding whole triangles at once. A ``margin``
+gives the same answer with much less work by deciding whole triangles at once, from
+:func:`facing_triangles` and :func:`corners_in_image`. A ``margin``
 widens the image by a distance: :mod:`nbv.dilation` uses it to find the samples just outside the
 image.
 
@@ -189,6 +190,20 @@ def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     return shift + np.arange(total)
 
 
+def facing_triangles(hull: ConvexHull, poses: np.ndarray) -> np.ndarray:
+    """Which hull triangles each camera faces: ``(V, F)`` bool, ``n . (c - p) > 1e-9``."""
+    normal, offset = hull.equations[:, :3], hull.equations[:, 3]
+    return poses[:, :3, 3] @ normal.T + offset > _FACING_TOL  # n . c + d = n . (c - p)
+
+
+def corners_in_image(hull: ConvexHull, planes: np.ndarray) -> np.ndarray:
+    """Which of the hull's corners (``hull.vertices``, in that order) each camera's image holds:
+    ``(V, corners)`` bool, for the ``(V, 5, 4)`` half-spaces of :func:`_frustum_planes`."""
+    signed = planes[..., :3].reshape(-1, 3) @ hull.points[hull.vertices].T
+    signed += planes[..., 3].reshape(-1, 1)
+    return _inside(signed.reshape(len(planes), 5, -1))
+
+
 def analytic_visibility_faces(
     hull: ConvexHull,
     samples: np.ndarray,
@@ -220,19 +235,14 @@ def analytic_visibility_faces(
     face_ids = _as_face_ids(face_ids, hull, len(samples))
     poses = _as_poses(poses)
     n_faces = len(hull.simplices)
-    n_views = len(poses)
     planes = _frustum_planes(poses, intrinsics, _as_margin(margin))  # (V, 5, 4)
     # Corners are tested once each: Qhull's vertex list, renumbered.
-    corner_ids = hull.vertices
     renumber = np.empty(len(hull.points), dtype=np.intp)
-    renumber[corner_ids] = np.arange(len(corner_ids))
+    renumber[hull.vertices] = np.arange(len(hull.vertices))
     tri = renumber[hull.simplices]
-    signed = planes[..., :3].reshape(-1, 3) @ hull.points[corner_ids].T
-    signed += planes[..., 3].reshape(-1, 1)
-    corner_in = _inside(signed.reshape(n_views, 5, -1))  # (V, corners)
+    corner_in = corners_in_image(hull, planes)  # (V, corners)
     all_in = corner_in[:, tri[:, 0]] & corner_in[:, tri[:, 1]] & corner_in[:, tri[:, 2]]
-    normal, offset = hull.equations[:, :3], hull.equations[:, 3]
-    facing = poses[:, :3, 3] @ normal.T + offset > _FACING_TOL  # n . c + d = n . (c - p)
+    facing = facing_triangles(hull, poses)
     seen_face = np.ascontiguousarray(facing & all_in)
     counts = np.bincount(face_ids, minlength=n_faces)
     grouped = bool(np.all(face_ids[1:] >= face_ids[:-1]))
