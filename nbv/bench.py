@@ -3,10 +3,12 @@
 Every row times the project's implementation and an independent, plain implementation of the same
 thing on the same data in the same run, and gives the ratio. The data: a synthetic chair rendered
 by ray casting from the 33 original views at 640 x 480 (full-resolution view clouds), its
-16384-point ground truth, and a 100k-point cloud from its views. The last rows compare the two
-rendering backends (``--no-render`` skips them).
+16384-point ground truth, and a 100k-point cloud from its views. A PCNBV inference episode on those
+views follows (``--no-network`` skips it; trained weights from ``--checkpoint``, by default fold
+0's ``best.pt`` when it exists), and the last rows compare the two rendering backends
+(``--no-render`` skips them).
 
-Targets (issue 4 and 3) are printed beside the measured times; the paper's times are in FACTS.md.
+Targets (issues 3, 4 and 5) are printed beside the measured times; the paper's are in FACTS.md.
 """
 
 from __future__ import annotations
@@ -128,8 +130,16 @@ def bench_scene(seed: int = 0) -> dict:
     }
 
 
-def run(render: bool = True, seed: int = 0) -> list[dict]:
-    """Measure every row; returns dicts with name, ours, reference, ratio, target (seconds)."""
+def run(
+    render: bool = True,
+    network: bool = True,
+    checkpoint: Path | None = None,
+    seed: int = 0,
+) -> list[dict]:
+    """Measure every row; returns dicts with name, ours, reference, ratio, target (seconds).
+
+    ``network`` adds the PCNBV episode row (weights from ``checkpoint``, else untrained);
+    ``render`` the rendering rows."""
     scene = bench_scene(seed)
     views, gt, cloud = scene["views"], scene["gt"], scene["cloud100k"]
     state = np.zeros(33, dtype=bool)
@@ -235,6 +245,23 @@ def run(render: bool = True, seed: int = 0) -> list[dict]:
         0.050,
         "dilated analytic vs ray-cast simulation",
     )
+    if network:
+        from nbv.bench_network import episode_seconds
+
+        # The views as the dataset stores them (points_per_view = 2048), start view 1.
+        stored = [v[rng_pick(len(v), 2048, seed + i)] for i, v in enumerate(views)]
+        t = episode_seconds(stored, checkpoint)
+        rows.append(
+            dict(
+                name="PCNBV 9-view episode, 512 points (sampling + 9 forwards)",
+                ours=t["ours"],
+                reference=t["reference"],
+                ratio=t["reference"] / t["ours"],
+                target=0.3,
+                note="inference copy vs plain float32 network"
+                + ("" if checkpoint else " (untrained weights)"),
+            )
+        )
     if render:
         import tempfile
 
@@ -312,6 +339,13 @@ def format_table(rows: list[dict]) -> str:
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description="Speed of the fast paths against references.")
     parser.add_argument("--no-render", action="store_true", help="skip the rendering rows")
+    parser.add_argument("--no-network", action="store_true", help="skip the PCNBV episode row")
+    parser.add_argument(
+        "--checkpoint",
+        type=Path,
+        default=Path("outputs/train/pcnbv_coverage_fold0/best.pt"),
+        help="trained PCNBV checkpoint for the episode row (untrained weights when absent)",
+    )
     parser.add_argument("--json", type=Path, default=None, help="also write the rows as JSON")
     parser.add_argument(
         "--dataset",
@@ -320,7 +354,8 @@ def main(argv: list[str] | None = None) -> None:
         help="dataset for the 512-point ground-truth hull check (skipped when absent)",
     )
     args = parser.parse_args(argv)
-    rows = run(render=not args.no_render)
+    checkpoint = args.checkpoint if args.checkpoint.exists() else None
+    rows = run(render=not args.no_render, network=not args.no_network, checkpoint=checkpoint)
     print(format_table(rows))
     if args.dataset.exists():
         e = small_gt_hull_error(args.dataset)

@@ -423,6 +423,11 @@ class PCNBV(nn.Module):
         if self.config.normalize_input:
             points = self.normalize(points)
         per_point = self.features(points)
+        kind = per_point.device.type
+        if torch.is_autocast_enabled(kind):
+            # Cast once here: autocast would cast the concatenation again for every layer of
+            # the attention and for the first 1x1 conv.
+            per_point = per_point.to(torch.get_autocast_dtype(kind))
         n = per_point.shape[1]
         tiled_global = max_over(per_point, 1, keepdim=True).expand(-1, n, -1)
         tiled_state = view_state.to(per_point.dtype).unsqueeze(1).expand(-1, n, -1)

@@ -39,3 +39,39 @@ def test_table_marks_missed_targets():
     assert "| b | 0.500 | 200.0 | 400.0x | 1 | yes | y |" in table
     with pytest.raises(KeyError):
         format_table([{"name": "c"}])
+
+
+def test_network_episode_feeds_the_captured_views_and_refuses_revisits():
+    from nbv.bench_network import network_episode
+
+    views = [np.full((i + 1, 3), i, dtype=np.float32) for i in range(12)]
+    seen = []
+
+    def lowest_unvisited(cloud, state):
+        seen.append((len(cloud), int(state.sum())))
+        return int(np.flatnonzero(~state)[0])
+
+    assert network_episode(lowest_unvisited, views, start=4) == [4, 0, 1, 2, 3, 5, 6, 7, 8, 9]
+    # The cloud holds exactly the captured views' points: 5, then 5 + 1, then 5 + 1 + 2, ...
+    assert seen[:3] == [(5, 1), (6, 2), (8, 3)] and len(seen) == 9
+    with pytest.raises(ValueError, match="visited view 4"):
+        network_episode(lambda cloud, state: 4, views, start=4)
+
+
+def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy():
+    import torch
+
+    from nbv.bench_network import network_episode, plain_decider
+    from nbv.net import PCNBV, PCNBVConfig, for_inference
+    from nbv.policies import NetworkPolicy
+
+    torch.manual_seed(0)
+    config = dict(k=4, growth=4, blocks=2, first_channels=8, attention_channels=8)
+    net = PCNBV(PCNBVConfig(n_views=12, conv_channels=(32, 32), fc_channels=(32, 16), **config))
+    net.eval()
+    rng = np.random.default_rng(0)
+    views = [rng.normal(size=(50, 3)).astype(np.float32) + i for i in range(12)]
+    policy = NetworkPolicy(for_inference(net, "fp32"), n_points=64, precision="fp32")
+    ours = network_episode(policy.decide, views, start=2)
+    assert ours == network_episode(plain_decider(net, 64), views, start=2)
+    assert len(set(ours)) == 10

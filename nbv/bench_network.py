@@ -1,0 +1,101 @@
+"""Time one 9-view episode of PCNBV inference, sampling included (a row of ``make bench``).
+
+An episode starts from one captured view and asks the network nine times for the next view; each
+decision farthest-point samples the accumulated cloud to the network's points and runs one
+forward pass. The project's path is :class:`nbv.policies.NetworkPolicy` on the inference copy of
+the network (:func:`nbv.net.for_inference`: batch norm folded, bfloat16 where the CPU runs it
+natively, subnormals flushed); the reference is the plain float32 network called the same way.
+
+Untrained weights cost what trained ones cost only because subnormals are flushed in the
+project's path; pass a trained checkpoint (``python -m nbv.bench --checkpoint best.pt``) to time
+the reference on trained weights too.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from nbv.samples import farthest_points
+
+#: Views captured in an episode, the start view included (nine decisions).
+EPISODE_VIEWS = 10
+
+
+def network_episode(
+    decide: Callable[[np.ndarray, np.ndarray], int],
+    views: Sequence[np.ndarray],
+    start: int,
+    n_views: int = EPISODE_VIEWS,
+) -> list[int]:
+    """Run ``decide(cloud (N, 3), view_state (V,) bool) -> view`` from ``start`` until
+    ``n_views`` views are captured; ``views`` holds each candidate view's (M, 3) points.
+    Returns the captured views in order."""
+    state = np.zeros(len(views), dtype=bool)
+    order = [start]
+    state[start] = True
+    while len(order) < n_views:
+        v = int(decide(np.concatenate([views[i] for i in order]), state))
+        if state[v]:
+            raise ValueError(f"the policy chose the visited view {v}")
+        state[v] = True
+        order.append(v)
+    return order
+
+
+def load_network(checkpoint: Path | None, n_views: int = 33):
+    """A trained network from ``checkpoint``, or a freshly initialised one (seed 0) when None;
+    in eval mode."""
+    import torch
+
+    from nbv.net import PCNBV, PCNBVConfig, load_checkpoint
+
+    if checkpoint is not None:
+        net, _ = load_checkpoint(checkpoint, n_views=n_views)
+        return net.eval()
+    torch.manual_seed(0)
+    return PCNBV(PCNBVConfig(n_views=n_views)).eval()
+
+
+def plain_decider(net, n_points: int) -> Callable[[np.ndarray, np.ndarray], int]:
+    """The reference decision: farthest point sampling and a plain float32 forward pass."""
+    import torch
+
+    def decide(cloud: np.ndarray, state: np.ndarray) -> int:
+        x = torch.from_numpy(np.ascontiguousarray(farthest_points(cloud, n_points), np.float32))
+        s = torch.from_numpy(state)[None]
+        with torch.no_grad():
+            scores = net(x[None], s.float())[0]
+        return int(torch.where(s[0], -torch.inf, scores).argmax())
+
+    return decide
+
+
+def episode_seconds(
+    views: Sequence[np.ndarray],
+    checkpoint: Path | None = None,
+    start: int = 1,
+    n_points: int = 512,
+    repeat: int = 3,
+) -> dict[str, float]:
+    """Best wall time of a whole episode over ``repeat`` runs, for the project's path
+    (``"ours"``) and the plain float32 network (``"reference"``), in seconds."""
+    from nbv.net import for_inference
+    from nbv.policies import NetworkPolicy
+
+    net = load_network(checkpoint, len(views))
+    policy = NetworkPolicy(for_inference(net, "auto"), n_points=n_points, precision="auto")
+    deciders = {"ours": policy.decide, "reference": plain_decider(net, n_points)}
+    out = {}
+    for name, decide in deciders.items():
+        network_episode(decide, views, start)  # warm-up: first calls allocate, pick kernels
+        times = []
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            network_episode(decide, views, start)
+            times.append(time.perf_counter() - t0)
+        out[name] = min(times)
+    return out
