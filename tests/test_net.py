@@ -27,6 +27,7 @@ from nbv.net import (
     max_over,
     resolve_precision,
     save_checkpoint,
+    smallest_indices,
 )
 
 TINY = PCNBVConfig(
@@ -178,6 +179,29 @@ def test_knn_indices_match_brute_force() -> None:
             expected = set(np.argsort(dist[i].numpy(), kind="stable")[:6].tolist())
             assert set(idx[b, i].tolist()) == expected
             assert i in expected
+
+
+def test_smallest_indices_select_what_topk_selects() -> None:
+    g = torch.Generator().manual_seed(2)
+    for shape, k in (((3, 40, 512), 16), ((700, 64), 4), ((2, 5, 30), 6), ((4, 16), 16)):
+        values = torch.randn(*shape, generator=g)
+        values[..., 7] = -math.inf  # the forced self-distance
+        values[..., :3] = torch.round(values[..., :3])  # ties, also at the k-th place
+        expected = values.topk(k, dim=-1, largest=False).values
+        idx = smallest_indices(values, k)
+        assert idx.shape == (*shape[:-1], k)
+        assert torch.equal(values.gather(-1, idx).sort(-1).values, expected)
+        # No index twice in a row.
+        assert (idx.sort(-1).values.diff(dim=-1) > 0).all()
+
+
+def test_knn_of_batches_searched_in_groups_match_brute_force() -> None:
+    x = torch.randn(6, 512, 3, generator=torch.Generator().manual_seed(3))  # two groups of 4
+    idx = knn_indices(x, 16)
+    dist = torch.cdist(x.double(), x.double())
+    dist.diagonal(dim1=1, dim2=2).fill_(-1.0)
+    expected = dist.topk(16, dim=-1, largest=False).values
+    torch.testing.assert_close(dist.gather(-1, idx).sort(-1).values, expected)
 
 
 def test_knn_always_includes_self_with_duplicates() -> None:
