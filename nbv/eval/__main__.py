@@ -4,19 +4,12 @@ Settings: ``conf/eval.yaml``. Writes ``outputs/eval/<run>/``: results.json, summ
 report.md and the PNG plots.
 """
 
-import os
 import sys
 
-# Torch's OpenMP threads spin while they wait. On a 2-core machine shared with other work that
-# made a PCNBV forward pass over 3x slower (measured under load: 0.69 s spinning, 0.21 s
-# passive); on idle cores passive waiting costs about 5 % (0.082 s -> 0.088 s). Set before
-# torch is imported; an explicit OMP_WAIT_POLICY in the environment wins.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+import hydra
+from omegaconf import DictConfig
 
-import hydra  # noqa: E402
-from omegaconf import DictConfig  # noqa: E402
-
-from nbv.eval.config import settings_from_config  # noqa: E402
+from nbv.eval.config import settings_from_config
 
 
 @hydra.main(config_path="../../conf", config_name="eval", version_base="1.3")
