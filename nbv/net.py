@@ -280,7 +280,7 @@ def smallest_indices(values: Tensor, k: int, chunk: int = 16) -> Tensor:
     rows) go through ``topk``.
 
     Args:
-        values: (..., M) float tensor without NaN (-inf and inf allowed), M >= k.
+        values: (..., M) float tensor, M >= k; entries may be -inf but not NaN or +inf.
         k: entries a row.
         chunk: entries a chunk; rows with fewer than ``k`` whole chunks use ``topk`` directly.
 
