@@ -138,10 +138,11 @@ def test_cli_trains_and_reports_bad_input(tiny_dataset, tmp_path):
         f"dataset={tiny_dataset}",
         "model=tiny",
         "progress=false",
+        f"out_dir={tmp_path / 'cli'}",  # hydra's run folder too: nothing lands in the checkout
     ]
     done = subprocess.run(
         base + ["fold=2", "epochs=1", "batch_size=8", "train_points=32", "eval_points=64",
-                "start_views=[1]", f"out_dir={tmp_path / 'cli'}"],
+                "start_views=[1]"],
         cwd=ROOT, capture_output=True, text=True,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
