@@ -108,8 +108,11 @@ def test_sbatch_script_array_matches_local_run(slurm_cluster, tmp_path):
             f"--output={tmp_path}/task-%a.out", str(REPO / "scripts" / "slurm_dataset.sbatch"),
             "renderer.backend=raycast",
         ],
-        cwd=REPO, env=env, check=True, capture_output=True, text=True, timeout=600,
+        # Submitted from tmp_path: the tasks' hydra folders go there, not into the checkout.
+        cwd=tmp_path, env=env, check=True, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
+    (hydra_dir,) = (tmp_path / "outputs" / "dataset").glob("slurm-*")
+    assert sorted(p.name for p in hydra_dir.iterdir()) == ["shard0", "shard1"]
     local = tmp_path / "local"
     local_run(local, "raycast")
     assert_same_arrays(out, local)
