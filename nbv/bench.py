@@ -36,6 +36,9 @@ from nbv.scores import (
 )
 from nbv.viewspace import original_viewspace
 
+#: The checkpoint of ``python -m train fold=0``, timed by the episode row when it exists.
+FOLD0_CHECKPOINT = Path("outputs/train/pcnbv_coverage_fold0/best.pt")
+
 
 def best_time(fn: Callable[[], object], repeat: int = 5, budget: float = 3.0) -> float:
     """Best wall time of ``fn`` in seconds over up to ``repeat`` runs (stops after ``budget`` s)."""
@@ -343,8 +346,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--checkpoint",
         type=Path,
-        default=Path("outputs/train/pcnbv_coverage_fold0/best.pt"),
-        help="trained PCNBV checkpoint for the episode row (untrained weights when absent)",
+        default=None,
+        help=f"trained PCNBV checkpoint for the episode row (default: {FOLD0_CHECKPOINT} when "
+        "it exists, else untrained weights)",
     )
     parser.add_argument("--json", type=Path, default=None, help="also write the rows as JSON")
     parser.add_argument(
@@ -354,7 +358,11 @@ def main(argv: list[str] | None = None) -> None:
         help="dataset for the 512-point ground-truth hull check (skipped when absent)",
     )
     args = parser.parse_args(argv)
-    checkpoint = args.checkpoint if args.checkpoint.exists() else None
+    checkpoint = args.checkpoint
+    if checkpoint is None:
+        checkpoint = FOLD0_CHECKPOINT if FOLD0_CHECKPOINT.exists() else None
+    elif not checkpoint.is_file():
+        parser.error(f"--checkpoint {checkpoint}: no such file (a best.pt of python -m train)")
     rows = run(render=not args.no_render, network=not args.no_network, checkpoint=checkpoint)
     print(format_table(rows))
     if args.dataset.exists():

@@ -13,16 +13,14 @@ the reference on trained weights too.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from nbv.bench import best_time
+from nbv.episodes import EPISODE_VIEWS
 from nbv.samples import farthest_points
-
-#: Views captured in an episode, the start view included (nine decisions).
-EPISODE_VIEWS = 10
 
 
 def network_episode(
@@ -64,12 +62,13 @@ def plain_decider(net, n_points: int) -> Callable[[np.ndarray, np.ndarray], int]
     """The reference decision: farthest point sampling and a plain float32 forward pass."""
     import torch
 
+    from nbv.net import masked_argmax
+
     def decide(cloud: np.ndarray, state: np.ndarray) -> int:
         x = torch.from_numpy(np.ascontiguousarray(farthest_points(cloud, n_points), np.float32))
         s = torch.from_numpy(state)[None]
         with torch.no_grad():
-            scores = net(x[None], s.float())[0]
-        return int(torch.where(s[0], -torch.inf, scores).argmax())
+            return int(masked_argmax(net(x[None], s.float()), s)[0])
 
     return decide
 
@@ -92,10 +91,5 @@ def episode_seconds(
     out = {}
     for name, decide in deciders.items():
         network_episode(decide, views, start)  # warm-up: first calls allocate, pick kernels
-        times = []
-        for _ in range(repeat):
-            t0 = time.perf_counter()
-            network_episode(decide, views, start)
-            times.append(time.perf_counter() - t0)
-        out[name] = min(times)
+        out[name] = best_time(lambda d=decide: network_episode(d, views, start), repeat, np.inf)
     return out
