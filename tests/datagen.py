@@ -6,9 +6,9 @@ from pathlib import Path
 
 import trimesh
 
-from nbv.camera import Intrinsics
 from nbv.dataset.generate import Settings, generate
-from nbv.samples import SampleSettings, write_samples
+from nbv.dataset.samples import SampleSettings, write_samples
+from nbv.geometry.camera import Intrinsics
 
 SMALL_CAMERA = Intrinsics.centred(64, 48, 48.0)
 

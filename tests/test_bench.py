@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from nbv import sco, sph
-from nbv.bench import format_table, numpy_fps, python_greedy, scipy_signature
-from nbv.samples import farthest_points
+from nbv.bench.suite import format_table, numpy_fps, python_greedy, scipy_signature
+from nbv.geometry.clouds import farthest_points
+from nbv.geometry.sph import signature
+from nbv.planning.set_cover import greedy_max_coverage
 
 
 def test_numpy_fps_equals_fpsample():
@@ -20,12 +21,12 @@ def test_scipy_signature_equals_recurrence_signature():
     rng = np.random.default_rng(1)
     d = rng.normal(size=(5000, 3))
     points = d / np.linalg.norm(d, axis=1, keepdims=True) * (0.4 + 0.05 * d[:, :1] ** 2)
-    np.testing.assert_allclose(scipy_signature(points, 3), sph.signature(points, 3), atol=1e-5)
+    np.testing.assert_allclose(scipy_signature(points, 3), signature(points, 3), atol=1e-5)
 
 
 def test_python_greedy_equals_packed_greedy():
     sets = np.random.default_rng(2).random((12, 300)) < 0.2
-    views, _ = sco.greedy_max_coverage(sets, 5, (3,))
+    views, _ = greedy_max_coverage(sets, 5, (3,))
     assert python_greedy(sets, 5, (3,)) == views
 
 
@@ -42,7 +43,7 @@ def test_table_marks_missed_targets():
 
 
 def test_network_episode_feeds_the_captured_views_and_refuses_revisits():
-    from nbv.bench_network import network_episode
+    from nbv.bench.network import network_episode
 
     views = [np.full((i + 1, 3), i, dtype=np.float32) for i in range(12)]
     seen = []
@@ -61,9 +62,9 @@ def test_network_episode_feeds_the_captured_views_and_refuses_revisits():
 def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy():
     import torch
 
-    from nbv.bench_network import network_episode, plain_decider
-    from nbv.net import PCNBV, PCNBVConfig, for_inference
-    from nbv.policies import NetworkPolicy
+    from nbv.bench.network import network_episode, plain_decider
+    from nbv.models.net import PCNBV, PCNBVConfig, for_inference
+    from nbv.policies.network import NetworkPolicy
 
     torch.manual_seed(0)
     config = dict(k=4, growth=4, blocks=2, first_channels=8, attention_channels=8)

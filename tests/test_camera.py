@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from nbv.camera import (
+from nbv.geometry.camera import (
     Intrinsics,
     backproject,
     look_at,
@@ -10,7 +10,7 @@ from nbv.camera import (
     project,
     viewspace_poses,
 )
-from nbv.viewspace import original_viewspace
+from nbv.geometry.viewspace import original_viewspace
 
 
 def test_default_intrinsics_are_pcnbv():

@@ -16,11 +16,12 @@ import trimesh
 from datagen import SMALL_CAMERA, small_settings
 
 import nbv.dataset
-from nbv.camera import backproject, look_at, viewspace_poses
 from nbv.dataset.generate import ConfigError, exit_status, generate, view_data
 from nbv.dataset.show import main as show_main
-from nbv.render import RenderError, render_raycast
-from nbv.viewspace import original_viewspace
+from nbv.geometry.camera import backproject, look_at, viewspace_poses
+from nbv.geometry.viewspace import original_viewspace
+from nbv.render.job import RenderError
+from nbv.render.raycast import render_raycast
 
 ROOT = Path(__file__).resolve().parents[1]
 

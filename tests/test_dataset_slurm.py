@@ -15,8 +15,8 @@ import h5py
 import numpy as np
 import pytest
 
-from nbv.camera import Intrinsics
 from nbv.dataset.generate import Settings, generate
+from nbv.geometry.camera import Intrinsics
 
 pytestmark = [pytest.mark.slurm, pytest.mark.blender]
 

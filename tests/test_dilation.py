@@ -6,10 +6,12 @@ import numpy as np
 import pytest
 from shapes import cube_corners, fibonacci_sphere
 
-from nbv import dilation, sco
-from nbv.camera import Intrinsics, viewspace_poses
-from nbv.scores import DEFAULT_EPS
-from nbv.viewspace import original_viewspace
+from nbv.geometry.camera import Intrinsics, viewspace_poses
+from nbv.geometry.scores import DEFAULT_EPS
+from nbv.geometry.viewspace import original_viewspace
+from nbv.planning.dilation import NearTriangles, dilate_view_sets, near_triangles
+from nbv.planning.hull import convex_hull, sample_on_hull
+from nbv.planning.view_sets import view_sets
 
 K = Intrinsics()
 
@@ -50,7 +52,7 @@ def _expected_near_pairs(hull, samples, faces, eps) -> set[tuple[int, int]]:
     return {(int(i), int(t)) for i, t in zip(*np.nonzero(dist <= eps), strict=True)}
 
 
-def _near_pairs(near: dilation.NearTriangles, faces) -> set[tuple[int, int]]:
+def _near_pairs(near: NearTriangles, faces) -> set[tuple[int, int]]:
     sizes = np.diff(near.starts)
     assert np.all(sizes > 0) and near.starts[0] == 0 and near.starts[-1] == len(near.sample)
     own, other = np.repeat(near.own, sizes), np.repeat(near.other, sizes)
@@ -78,16 +80,16 @@ def test_near_triangles_match_brute_force_distances(shape):
         points = np.vstack([points, points * [1.0, 1.0, -1.0]])
     else:
         points = cube_corners(0.2)  # two triangles per face: the diagonals pair them
-    hull = sco.convex_hull(points)
-    samples, _, faces = sco.sample_on_hull(hull, 3000, rng=5)
+    hull = convex_hull(points)
+    samples, _, faces = sample_on_hull(hull, 3000, rng=5)
     eps = 0.03
     expected = _expected_near_pairs(hull, samples, faces, eps)
-    near = dilation.near_triangles(hull, samples, faces, eps)
+    near = near_triangles(hull, samples, faces, eps)
     assert _near_pairs(near, faces) == expected and len(expected) > 100
     assert near.eps == eps
     # Samples in any order.
     perm = rng.permutation(len(samples))
-    shuffled = dilation.near_triangles(hull, samples[perm], faces[perm], eps)
+    shuffled = near_triangles(hull, samples[perm], faces[perm], eps)
     assert {(int(perm[i]), t) for i, t in _near_pairs(shuffled, faces[perm])} == expected
 
 
@@ -97,8 +99,8 @@ def test_near_triangles_match_brute_force_distances(shape):
 
 
 def _small_raycast_setup(points, n_samp=3000):
-    hull = sco.convex_hull(points)
-    samples, normals, faces = sco.sample_on_hull(hull, n_samp, rng=6)
+    hull = convex_hull(points)
+    samples, normals, faces = sample_on_hull(hull, n_samp, rng=6)
     return hull, samples, normals, faces
 
 
@@ -121,11 +123,11 @@ def test_dilation_captures_exactly_what_the_pixels_capture(shape):
         points = np.vstack([points, points * [1.0, 1.0, -1.0]])
     hull, samples, normals, faces = _small_raycast_setup(points)
     poses = viewspace_poses(original_viewspace())
-    visible = sco.view_sets(samples, normals, poses, SMALL, hull=hull, face_ids=faces, dilate=False)
-    dilated = sco.view_sets(
+    visible = view_sets(samples, normals, poses, SMALL, hull=hull, face_ids=faces, dilate=False)
+    dilated = view_sets(
         samples, normals, poses, SMALL, eps=eps, hull=hull, face_ids=faces, dilate=True
     )
-    raycast = sco.view_sets(samples, normals, poses, SMALL, "raycast", eps, hull)
+    raycast = view_sets(samples, normals, poses, SMALL, "raycast", eps, hull)
     assert np.all(dilated >= visible)
     added = dilated & ~visible
     assert added.sum() > 50
@@ -137,8 +139,8 @@ def test_dilation_captures_exactly_what_the_pixels_capture(shape):
     # what faces seen obliquely may lose between pixels: nothing captured is missed.
     assert ((dilated != raycast) & ~visible).sum() <= 2
     assert (raycast & ~dilated).sum() <= 2
-    near = dilation.near_triangles(hull, samples, faces, eps)
-    again = dilation.dilate_view_sets(visible, samples, faces, hull, near, poses, SMALL)
+    near = near_triangles(hull, samples, faces, eps)
+    again = dilate_view_sets(visible, samples, faces, hull, near, poses, SMALL)
     assert np.array_equal(again, dilated)
 
 
@@ -149,9 +151,9 @@ def test_dilation_behind_an_edge_needs_a_pixel():
     hull, samples, normals, faces = _small_raycast_setup(cube_corners(0.2), 20000)
     # Just above the top face: it is seen at about 5 degrees, its far edge is a silhouette.
     poses = viewspace_poses(np.array([[1.0, 0.0, 0.28]]))
-    visible = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=False)
-    dilated = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=True)
-    raycast = sco.view_sets(samples, normals, poses, method="raycast", hull=hull)
+    visible = view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=False)
+    dilated = view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=True)
+    raycast = view_sets(samples, normals, poses, method="raycast", hull=hull)
     behind = (normals[:, 0] < -0.5) & (samples[:, 2] > 0.2 - DEFAULT_EPS)  # on -x, by the edge
     assert not visible[0, behind].any()
     assert 0 < dilated[0, behind].sum() < behind.sum()
@@ -165,12 +167,13 @@ def test_dilation_behind_an_edge_needs_a_pixel():
 
 def _single_view_hull_points(view: int) -> np.ndarray:
     """What one full-resolution view of a synthetic chair sees, as the dataset renders it."""
-    from nbv import meshes, synthetic
-    from nbv.camera import backproject
-    from nbv.render import render_raycast
+    from nbv.assets.meshes import Mesh, normalise
+    from nbv.assets.synthetic import build, catalogue
+    from nbv.geometry.camera import backproject
+    from nbv.render.raycast import render_raycast
 
-    entry = next(e for e in synthetic.catalogue() if e.category == "chair")
-    mesh, _, _ = meshes.normalise(meshes.Mesh(*synthetic.build(entry, 0)))
+    entry = next(e for e in catalogue() if e.category == "chair")
+    mesh, _, _ = normalise(Mesh(*build(entry, 0)))
     pose = viewspace_poses(original_viewspace())[view]
     depth = render_raycast(mesh.vertices, mesh.faces, pose[None], K)
     return backproject(depth[0], K, pose)
@@ -194,12 +197,12 @@ def test_analytic_matches_raycast_up_to_oblique_faces(name, min_agreement):
         points = rng.uniform(-1.0, 1.0, (200, 3)) * [0.35, 0.2, 0.3]
     else:
         points = _single_view_hull_points(int(name.split()[-1]))
-    hull = sco.convex_hull(points)
-    samples, normals, faces = sco.sample_on_hull(hull, 4096, rng=4)
+    hull = convex_hull(points)
+    samples, normals, faces = sample_on_hull(hull, 4096, rng=4)
     poses = viewspace_poses(original_viewspace())
-    visible = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=False)
-    analytic = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=True)
-    raycast = sco.view_sets(samples, normals, poses, method="raycast", hull=hull)
+    visible = view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=False)
+    analytic = view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=True)
+    raycast = view_sets(samples, normals, poses, method="raycast", hull=hull)
     assert (analytic == raycast).mean() >= min_agreement
     assert (analytic == raycast).mean() > (visible == raycast).mean()
     # Up to float32 rendering: nothing the pixels capture is missed ...

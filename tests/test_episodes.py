@@ -8,8 +8,8 @@ from datagen import small_settings
 
 import nbv.dataset
 from nbv.dataset.generate import generate
-from nbv.episodes import auc, curves, run_episode
-from nbv.policies import OraclePolicy, RandomPolicy
+from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.episode import auc, curves, run_episode
 
 
 @pytest.fixture(scope="module")

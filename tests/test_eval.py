@@ -16,7 +16,6 @@ import trimesh
 from datagen import SMALL_CAMERA, write_meshes
 from test_policies import make_tiny_dataset, save_tiny_checkpoint
 
-from nbv.episodes import auc
 from nbv.eval.config import (
     METHODS,
     EvalConfigError,
@@ -31,6 +30,7 @@ from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import Context, episode_rng, make_policy
 from nbv.eval.report import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
+from nbv.policies.episode import auc
 
 ROOT = Path(__file__).resolve().parents[1]
 STARTS = (1, 24)

@@ -5,27 +5,28 @@ import numpy as np
 import pytest
 import trimesh
 
-from nbv.meshes import (
-    MESH_SUFFIXES,
-    SHAPENET_TRAIN_CATEGORIES,
-    SHAPENET_UNSEEN_CATEGORIES,
+from nbv.assets.catalogues import (
     SOURCES,
     CatalogueError,
-    Mesh,
     MeshEntry,
-    MeshError,
     bop_catalogue,
     catalogue,
     check_catalogue,
-    face_areas,
     folder_catalogue,
     homebrew_catalogue,
     linemod_catalogue,
+    shapenet_catalogue,
+    stanford_catalogue,
+)
+from nbv.assets.categories import SHAPENET_TRAIN_CATEGORIES, SHAPENET_UNSEEN_CATEGORIES
+from nbv.assets.meshes import (
+    MESH_SUFFIXES,
+    Mesh,
+    MeshError,
+    face_areas,
     load_mesh,
     normalise,
     sample_surface,
-    shapenet_catalogue,
-    stanford_catalogue,
     validate_mesh,
 )
 

@@ -1,4 +1,4 @@
-"""Tests of nbv.net: the PCNBV network, masked_argmax and checkpoints.
+"""Tests of nbv.models.net: the PCNBV network, masked_argmax and checkpoints.
 
 Tiny configs keep everything fast on CPU; the default config is only built to check its sizes.
 """
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from nbv.net import (
+from nbv.models.net import (
     PCNBV,
     CheckpointError,
     DenseEdgeConv,

@@ -11,17 +11,14 @@ import pytest
 from datagen import SMALL_CAMERA
 
 import nbv.dataset
-from nbv import sco
 from nbv.dataset.generate import Settings, generate
-from nbv.episodes import DEFAULT_START_VIEWS, EpisodeState, run_episode
-from nbv.policies import (
-    HullSCOPolicy,
-    HullSCOReplanPolicy,
-    NetworkPolicy,
-    OraclePolicy,
-    RandomPolicy,
-    thicken,
-)
+from nbv.planning.hull import convex_hull
+from nbv.planning.planner import plan as sco_plan
+from nbv.planning.planner import plan_sph
+from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
+from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
+from nbv.policies.network import NetworkPolicy
 
 #: A PCNBV small enough to run in milliseconds (the sizes of tests/test_train.py).
 TINY_NET = dict(
@@ -54,7 +51,7 @@ def save_tiny_checkpoint(path: Path, input: str = "points", seed: int = 0) -> Pa
     eval_points)."""
     import torch
 
-    from nbv.net import PCNBV, PCNBVConfig, save_checkpoint
+    from nbv.models.net import PCNBV, PCNBVConfig, save_checkpoint
 
     torch.manual_seed(seed)
     net = PCNBV(PCNBVConfig(n_views=33, **TINY_NET)).eval()
@@ -143,7 +140,7 @@ def test_one_shot_planner_is_the_plan_of_the_start_view(model):
         kw = dict(n_samp=4096, intrinsics=SMALL_CAMERA, eps=0.02, dilate=dilate)
         episode = run_episode(model, "original", 10, HullSCOPolicy(np.random.default_rng(11), **kw))
         rng = np.random.default_rng(11)
-        expected = sco.plan(
+        expected = sco_plan(
             view.view_points(10), view.poses[:, :3, 3], 9, [10], rng=rng, poses=view.poses, **kw
         )
         assert episode.views == [10, *expected.views]
@@ -155,7 +152,7 @@ def test_sph_planner_plans_on_the_signature(model):
     view = model.views["permuted"]
     policy = HullSCOPolicy(np.random.default_rng(2), sph=True, lmax=2, intrinsics=SMALL_CAMERA)
     episode = run_episode(model, "permuted", 1, policy)
-    expected = sco.plan_sph(
+    expected = plan_sph(
         view.view_points(1),
         view.poses[:, :3, 3],
         lmax=2,
@@ -181,7 +178,7 @@ def test_probes_come_first_and_only_their_probe_points_are_used(model):
     for v in probes:
         pts = view.view_points(v)
         parts.append(pts[np.sort(rng.choice(len(pts), 20, replace=False))])
-    plan = sco.plan(
+    plan = sco_plan(
         np.concatenate(parts),
         view.poses[:, :3, 3],
         n_iter=6,
@@ -205,7 +202,7 @@ def test_replanning_takes_the_first_view_of_a_plan_on_everything_seen(model):
     for i in range(1, 10):
         seen = episode.views[:i]
         cloud = np.concatenate([view.view_points(v) for v in seen])
-        plan = sco.plan(cloud, view.poses[:, :3, 3], n_iter=1, exclude=seen, rng=rng,
+        plan = sco_plan(cloud, view.poses[:, :3, 3], n_iter=1, exclude=seen, rng=rng,
                         intrinsics=SMALL_CAMERA, poses=view.poses)  # fmt: skip
         assert plan.views[0] == episode.views[i]
 
@@ -252,7 +249,7 @@ def test_policies_other_than_the_oracle_do_not_read_the_ground_truth(model, netw
 def test_thicken_gives_a_flat_square_the_volume_of_its_minkowski_sum():
     square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
     delta = 1e-3
-    volume = sco.convex_hull(thicken(square, delta)).volume
+    volume = convex_hull(thicken(square, delta)).volume
     # Square + octahedron of radius d: cross-sections 1 + 4 r + 2 r^2 with r = d - |z|.
     assert volume == pytest.approx(2 * (delta + 2 * delta**2 + 2 * delta**3 / 3), rel=1e-9)
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from nbv.camera import (
+from nbv.geometry.camera import (
     Intrinsics,
     look_at,
     opencv_to_blender,
@@ -24,15 +24,11 @@ from nbv.camera import (
     valid_depth,
     viewspace_poses,
 )
-from nbv.render import (
-    BLENDER_SCRIPT,
-    RenderError,
-    RenderJob,
-    render,
-    render_blender,
-    render_raycast,
-)
-from nbv.viewspace import original_viewspace
+from nbv.geometry.viewspace import original_viewspace
+from nbv.render.backends import render
+from nbv.render.blender import BLENDER_SCRIPT, render_blender
+from nbv.render.job import RenderError, RenderJob
+from nbv.render.raycast import render_raycast
 
 CAMERA = Intrinsics.centred(80, 60, 60.0)
 #: Off-centre principal point and non-square pixels.
@@ -346,7 +342,7 @@ def test_blender_crash_restarts_for_the_rest(tmp_path):
 
 
 def test_bench_mesh_is_a_closed_50k_triangle_surface():
-    from nbv.bench_render import bumpy_torus
+    from nbv.bench.render import bumpy_torus
 
     vertices, faces = bumpy_torus()
     mesh = trimesh.Trimesh(vertices, faces, process=False)
@@ -356,7 +352,7 @@ def test_bench_mesh_is_a_closed_50k_triangle_surface():
 
 
 def test_agreement_statistics():
-    from nbv.bench_render import agreement
+    from nbv.bench.render import agreement
 
     first = np.array([[1.0, 2.0, np.inf, 4.0], [np.inf, 1.0, 1.0, 1.0]], dtype=np.float32)
     second = np.array([[1.0, 2.00005, 3.0, np.inf], [np.inf, 1.0, 1.001, 1.0]])
@@ -368,7 +364,7 @@ def test_agreement_statistics():
 
 def test_ray_culling_changes_nothing():
     """Casting only the reachable pixels gives exactly the image of casting every pixel."""
-    from nbv.render import reachable_pixels
+    from nbv.render.raycast import reachable_pixels
 
     intrinsics = Intrinsics.centred(96, 72, 70.0)
     parts = [trimesh.creation.box((0.1, 0.6, 0.1)), trimesh.creation.icosphere(2, 0.15)]

@@ -9,9 +9,8 @@ from scipy.spatial import ConvexHull, cKDTree
 
 import nbv.dataset
 from nbv.dataset.generate import generate
-from nbv.samples import (
+from nbv.dataset.samples import (
     SampleSettings,
-    farthest_points,
     load_samples,
     model_samples,
     samples_path,
@@ -19,6 +18,7 @@ from nbv.samples import (
     walk,
     write_samples,
 )
+from nbv.geometry.clouds import farthest_points
 
 
 def test_walk_follows_the_oracle_and_random_steps_are_seeded():

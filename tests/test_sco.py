@@ -9,9 +9,13 @@ import pytest
 from scipy.spatial import ConvexHull
 from shapes import cube_corners, fibonacci_sphere
 
-from nbv import sco
-from nbv.camera import Intrinsics, viewspace_poses
-from nbv.viewspace import original_viewspace
+from nbv.geometry.camera import Intrinsics, viewspace_poses
+from nbv.geometry.viewspace import original_viewspace
+from nbv.planning.hull import convex_hull, sample_hull, sample_on_hull
+from nbv.planning.planner import plan, plan_sph, sph_hull_points
+from nbv.planning.set_cover import greedy_max_coverage, pack_sets
+from nbv.planning.view_sets import view_sets
+from nbv.utils.bits import popcount_rows
 
 
 def _reference_greedy(
@@ -67,7 +71,7 @@ def test_greedy_against_brute_force_optimum():
     for _ in range(150):
         sets = rng.random((8, 30)) < rng.uniform(0.1, 0.5)
         for k in (1, 2, 3):
-            views, gains = sco.greedy_max_coverage(sets, k)
+            views, gains = greedy_max_coverage(sets, k)
             assert len(set(views)) == k
             assert sum(gains) == _union_size(sets, views)
             optimum = max(_union_size(sets, c) for c in combinations(range(8), k))
@@ -86,8 +90,8 @@ def test_greedy_hand_built_order():
     sets[1, [0, 1, 2, 6]] = True  # 4, but 3 of them go with view 0
     sets[2, 6:10] = True  # 4 new after view 0: second
     sets[3, [3, 4, 5, 10]] = True  # 1 new after views 0 and 2
-    assert sco.greedy_max_coverage(sets, 3) == ([0, 2, 3], [6, 4, 1])
-    assert sco.greedy_max_coverage(sets, 4) == ([0, 2, 3, 1], [6, 4, 1, 0])
+    assert greedy_max_coverage(sets, 3) == ([0, 2, 3], [6, 4, 1])
+    assert greedy_max_coverage(sets, 4) == ([0, 2, 3, 1], [6, 4, 1, 0])
 
 
 def test_greedy_is_not_optimal_where_it_need_not_be():
@@ -96,7 +100,7 @@ def test_greedy_is_not_optimal_where_it_need_not_be():
     sets[0, 1:5] = True
     sets[1, 0:3] = True
     sets[2, 3:6] = True
-    assert sco.greedy_max_coverage(sets, 2) == ([0, 1], [4, 1])  # 5 of the optimal 6
+    assert greedy_max_coverage(sets, 2) == ([0, 1], [4, 1])  # 5 of the optimal 6
 
 
 def test_greedy_gains_are_marginal_and_match_reference():
@@ -104,7 +108,7 @@ def test_greedy_gains_are_marginal_and_match_reference():
     for n in (1, 63, 64, 65, 1000):
         sets = rng.random((12, n)) < 0.3
         for exclude in ((), (3,), (0, 5, 5)):
-            views, gains = sco.greedy_max_coverage(sets, 6, exclude)
+            views, gains = greedy_max_coverage(sets, 6, exclude)
             assert (views, gains) == _reference_greedy(sets, 6, sorted(set(exclude)))
             covered = sets[list(exclude)].any(axis=0) if exclude else np.zeros(n, dtype=bool)
             for v, g in zip(views, gains, strict=True):
@@ -124,13 +128,13 @@ def test_greedy_matches_reference_on_block_sets():
             for start in rng.integers(0, 4000, rng.integers(1, 6)):
                 row[start : start + rng.integers(10, 800)] = True
         for exclude in ((), (int(rng.integers(20)),)):
-            assert sco.greedy_max_coverage(sets, 9, exclude) == _reference_greedy(sets, 9, exclude)
+            assert greedy_max_coverage(sets, 9, exclude) == _reference_greedy(sets, 9, exclude)
 
 
 def test_greedy_ties_go_to_the_lowest_index():
     sets = np.ones((4, 10), dtype=bool)
-    assert sco.greedy_max_coverage(sets, 3) == ([0, 1, 2], [10, 0, 0])
-    assert sco.greedy_max_coverage(sets, 3, exclude=[1]) == ([0, 2, 3], [0, 0, 0])
+    assert greedy_max_coverage(sets, 3) == ([0, 1, 2], [10, 0, 0])
+    assert greedy_max_coverage(sets, 3, exclude=[1]) == ([0, 2, 3], [0, 0, 0])
 
 
 def _circle(degrees) -> np.ndarray:
@@ -145,32 +149,32 @@ def test_greedy_spreads_zero_gain_picks_by_angle():
     sets[0, 1:] = True
     sets[1, 0] = True
     # By index: 1 (gain 1), then 2, 3, 4.
-    assert sco.greedy_max_coverage(sets, 4, exclude=(0,)) == ([1, 2, 3, 4], [1, 0, 0, 0])
+    assert greedy_max_coverage(sets, 4, exclude=(0,)) == ([1, 2, 3, 4], [1, 0, 0, 0])
     # Spread: 1; then 180 (170 degrees from {0, 10}); then 270 (90) before 90 (80); then 90.
-    spread = sco.greedy_max_coverage(sets, 4, exclude=(0,), positions=positions)
+    spread = greedy_max_coverage(sets, 4, exclude=(0,), positions=positions)
     assert spread == ([1, 4, 5, 3], [1, 0, 0, 0])
     assert spread[0] == _reference_greedy(sets, 4, [0], positions)[0]
     # Only the directions count, not the distances.
     scaled = positions * np.array([1.0, 3.0, 0.5, 2.0, 1.0, 7.0, 1.0])[:, None]
-    assert sco.greedy_max_coverage(sets, 4, exclude=(0,), positions=scaled) == spread
+    assert greedy_max_coverage(sets, 4, exclude=(0,), positions=scaled) == spread
     # Ties go to the lowest index: 90 and 270 are both 90 degrees from {0, 180}.
     nothing = np.zeros((7, 5), dtype=bool)
-    assert sco.greedy_max_coverage(nothing, 4, exclude=(0,), positions=positions) == (
+    assert greedy_max_coverage(nothing, 4, exclude=(0,), positions=positions) == (
         [4, 3, 5, 6],
         [0, 0, 0, 0],
     )
     # Nothing visited and nothing to cover: the first pick is view 0, then its opposite.
-    assert sco.greedy_max_coverage(nothing, 2, positions=positions)[0] == [0, 4]
+    assert greedy_max_coverage(nothing, 2, positions=positions)[0] == [0, 4]
 
 
 def test_greedy_rejects_bad_positions():
     sets = np.ones((3, 5), dtype=bool)
     with pytest.raises(ValueError, match="positions"):
-        sco.greedy_max_coverage(sets, 2, positions=np.ones((2, 3)))
+        greedy_max_coverage(sets, 2, positions=np.ones((2, 3)))
     with pytest.raises(ValueError, match="positions"):
-        sco.greedy_max_coverage(sets, 2, positions=np.zeros((3, 3)))
+        greedy_max_coverage(sets, 2, positions=np.zeros((3, 3)))
     with pytest.raises(ValueError, match="positions"):
-        sco.greedy_max_coverage(sets, 2, positions=np.full((3, 3), np.nan))
+        greedy_max_coverage(sets, 2, positions=np.full((3, 3), np.nan))
 
 
 def test_greedy_spread_matches_reference_on_random_viewspaces():
@@ -180,7 +184,7 @@ def test_greedy_spread_matches_reference_on_random_viewspaces():
         sets = rng.random((15, 12)) < 0.2
         exclude = tuple(int(v) for v in rng.choice(15, int(rng.integers(0, 3)), replace=False))
         expected = _reference_greedy(sets, 10, exclude, positions)
-        assert sco.greedy_max_coverage(sets, 10, exclude, positions) == expected
+        assert greedy_max_coverage(sets, 10, exclude, positions) == expected
         assert expected[1][-3:] == [0, 0, 0]  # the fill was exercised
 
 
@@ -189,37 +193,37 @@ def test_greedy_exclude_removes_the_visited_views_elements():
     sets[0, 0:6] = True
     sets[1, 0:5] = True
     sets[2, 6] = True
-    assert sco.greedy_max_coverage(sets, 2) == ([0, 2], [6, 1])
+    assert greedy_max_coverage(sets, 2) == ([0, 2], [6, 1])
     # View 0 visited: view 1 has nothing new, so the single new element of view 2 wins.
-    assert sco.greedy_max_coverage(sets, 2, exclude=(0,)) == ([2, 1], [1, 0])
+    assert greedy_max_coverage(sets, 2, exclude=(0,)) == ([2, 1], [1, 0])
 
 
 def test_greedy_rejects_bad_input():
     sets = np.ones((3, 5), dtype=bool)
     with pytest.raises(ValueError, match="n_iter=3 exceeds"):
-        sco.greedy_max_coverage(sets, 3, exclude=(0,))
+        greedy_max_coverage(sets, 3, exclude=(0,))
     with pytest.raises(ValueError, match="outside"):
-        sco.greedy_max_coverage(sets, 1, exclude=(3,))
+        greedy_max_coverage(sets, 1, exclude=(3,))
     with pytest.raises(ValueError, match="boolean matrix"):
-        sco.greedy_max_coverage(np.ones(5, dtype=bool), 1)
+        greedy_max_coverage(np.ones(5, dtype=bool), 1)
     with pytest.raises(ValueError, match="booleans"):
-        sco.greedy_max_coverage(np.full((3, 5), 0.5), 1)
+        greedy_max_coverage(np.full((3, 5), 0.5), 1)
     with pytest.raises(ValueError, match="n_iter"):
-        sco.greedy_max_coverage(sets, -1)
+        greedy_max_coverage(sets, -1)
 
 
 def test_pack_and_popcount():
     rng = np.random.default_rng(2)
     sets = rng.random((5, 130)) < 0.5
-    rows = sco.pack_sets(sets)
+    rows = pack_sets(sets)
     assert rows.dtype == np.uint64 and rows.shape == (5, 3)
     bits = np.unpackbits(rows.view(np.uint8), axis=1, bitorder="little")
     assert np.array_equal(bits[:, :130].astype(bool), sets)
     assert not bits[:, 130:].any()
-    assert np.array_equal(sco.popcount_rows(rows), sets.sum(axis=1))
+    assert np.array_equal(popcount_rows(rows), sets.sum(axis=1))
     words = rng.integers(0, 2**63, size=(4, 7), dtype=np.uint64) * np.uint64(2) + np.uint64(1)
     expected = [[bin(int(w)).count("1") for w in row] for row in words]
-    assert np.array_equal(sco.popcount_rows(words), np.sum(expected, axis=1))
+    assert np.array_equal(popcount_rows(words), np.sum(expected, axis=1))
 
 
 # --------------------------------------------------------------------------------------------
@@ -230,7 +234,7 @@ def test_pack_and_popcount():
 def test_sample_hull_lies_on_the_hull_with_outward_normals():
     rng = np.random.default_rng(3)
     points = rng.normal(size=(200, 3)) * [0.3, 0.2, 0.1] + [0.1, 0.0, -0.05]
-    samples, normals, faces = sco.sample_hull(points, 5000, rng=7)
+    samples, normals, faces = sample_hull(points, 5000, rng=7)
     hull = ConvexHull(points)
     assert samples.shape == normals.shape == (5000, 3) and faces.shape == (5000,)
     plane = hull.equations[faces]
@@ -239,7 +243,7 @@ def test_sample_hull_lies_on_the_hull_with_outward_normals():
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-12)
     assert ((samples - points.mean(axis=0)) * normals).sum(axis=1).min() > 0  # outward
     assert np.all(np.diff(faces) >= 0)
-    again = sco.sample_hull(points, 5000, rng=np.random.default_rng(7))
+    again = sample_hull(points, 5000, rng=np.random.default_rng(7))
     assert all(np.array_equal(a, b) for a, b in zip(again, (samples, normals, faces), strict=True))
 
 
@@ -248,7 +252,7 @@ def test_sample_hull_is_uniform_by_area():
     half = np.array([0.1, 0.2, 0.3])
     corners = cube_corners(1.0) * half
     n = 60000
-    _, normals, _ = sco.sample_hull(corners, n, rng=0)
+    _, normals, _ = sample_hull(corners, n, rng=0)
     area = 4 * np.array([half[1] * half[2], half[0] * half[2], half[0] * half[1]])
     expected = area / (2 * area.sum())
     for axis in range(3):
@@ -261,7 +265,7 @@ def test_sample_hull_is_uniform_by_area():
 def test_sample_hull_is_uniform_inside_each_face():
     # Each box face is two triangles; uniform samples fill its four quadrants equally.
     half = np.array([0.1, 0.2, 0.3])
-    samples, normals, _ = sco.sample_hull(cube_corners(1.0) * half, 60000, rng=1)
+    samples, normals, _ = sample_hull(cube_corners(1.0) * half, 60000, rng=1)
     for axis in range(3):
         u, w = [a for a in range(3) if a != axis]
         for sign in (1.0, -1.0):
@@ -288,17 +292,17 @@ def test_sample_hull_is_uniform_inside_each_face():
 )
 def test_sample_hull_rejects_a_hull_without_volume(points):
     with pytest.raises(ValueError, match="points"):
-        sco.sample_hull(points, 10, rng=0)
+        sample_hull(points, 10, rng=0)
 
 
 def test_sample_hull_rejects_bad_arguments():
     cube = cube_corners(0.2)
     with pytest.raises(ValueError, match="non-finite"):
-        sco.sample_hull(np.vstack([cube, [np.nan, 0, 0]]), 10)
+        sample_hull(np.vstack([cube, [np.nan, 0, 0]]), 10)
     with pytest.raises(ValueError, match="n_samp"):
-        sco.sample_hull(cube, 0)
+        sample_hull(cube, 0)
     with pytest.raises(ValueError, match="rng"):
-        sco.sample_hull(cube, 10, rng=0.5)
+        sample_hull(cube, 10, rng=0.5)
 
 
 # --------------------------------------------------------------------------------------------
@@ -307,21 +311,21 @@ def test_sample_hull_rejects_bad_arguments():
 
 
 def test_view_sets_rejects_bad_arguments():
-    hull = sco.convex_hull(cube_corners(0.2))
-    samples, normals, faces = sco.sample_on_hull(hull, 10, rng=0)
+    hull = convex_hull(cube_corners(0.2))
+    samples, normals, faces = sample_on_hull(hull, 10, rng=0)
     poses = viewspace_poses(original_viewspace())
     with pytest.raises(ValueError, match="method"):
-        sco.view_sets(samples, normals, poses, method="blender")
+        view_sets(samples, normals, poses, method="blender")
     with pytest.raises(ValueError, match="hull"):
-        sco.view_sets(samples, normals, poses, method="raycast")
+        view_sets(samples, normals, poses, method="raycast")
     with pytest.raises(ValueError, match="poses"):
-        sco.view_sets(samples, normals, poses[:, :3])
+        view_sets(samples, normals, poses[:, :3])
     with pytest.raises(ValueError, match="face_ids"):
-        sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces[:5])
+        view_sets(samples, normals, poses, hull=hull, face_ids=faces[:5])
     with pytest.raises(ValueError, match="dilate=True"):
-        sco.view_sets(samples, normals, poses, dilate=True)
+        view_sets(samples, normals, poses, dilate=True)
     with pytest.raises(ValueError, match="eps"):
-        sco.view_sets(samples, normals, poses, eps=-0.1, hull=hull, face_ids=faces, dilate=True)
+        view_sets(samples, normals, poses, eps=-0.1, hull=hull, face_ids=faces, dilate=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -340,16 +344,16 @@ def test_plan_on_a_cube_is_greedy_and_deterministic():
     rng = np.random.default_rng(6)
     points = _cube_surface(3000, 0.25, rng)
     viewspace = original_viewspace()
-    result = sco.plan(points, viewspace, exclude=(0,), n_samp=8192, rng=11)
+    result = plan(points, viewspace, exclude=(0,), n_samp=8192, rng=11)
     assert len(result.views) == 9 and len(set(result.views)) == 9 and 0 not in result.views
     assert result.gains[0] > 0
     assert result.gains == sorted(result.gains, reverse=True)
     assert set(result.timings) == {"hull", "sampling", "simulation", "sets", "greedy", "total"}
     assert all(t >= 0 for t in result.timings.values())
     # The same sets computed step by step give the same plan and covered fraction.
-    hull = sco.convex_hull(points)
-    samples, normals, faces = sco.sample_on_hull(hull, 8192, rng=11)
-    sets = sco.view_sets(samples, normals, viewspace_poses(viewspace), hull=hull, face_ids=faces)
+    hull = convex_hull(points)
+    samples, normals, faces = sample_on_hull(hull, 8192, rng=11)
+    sets = view_sets(samples, normals, viewspace_poses(viewspace), hull=hull, face_ids=faces)
     assert (result.views, result.gains) == _reference_greedy(sets, 9, [0], viewspace)
     assert result.covered_fraction == _union_size(sets, [0, *result.views]) / 8192
     # Every face of the cube is seen by some view: the plan covers the whole hull ...
@@ -365,7 +369,7 @@ def test_plan_on_a_cube_is_greedy_and_deterministic():
         closed[view] = True
     by_index = np.flatnonzero(~np.isin(np.arange(len(viewspace)), [0, *result.views[:zero]]))
     assert result.views[zero:] != by_index[: 9 - zero].tolist()
-    again = sco.plan(points, viewspace, exclude=(0,), n_samp=8192, rng=11)
+    again = plan(points, viewspace, exclude=(0,), n_samp=8192, rng=11)
     assert (again.views, again.gains) == (result.views, result.gains)
 
 
@@ -377,17 +381,17 @@ def test_plan_dilates_the_sets_only_when_asked():
     points = _cube_surface(3000, 0.25, np.random.default_rng(6))
     viewspace = original_viewspace()
     poses = viewspace_poses(viewspace)
-    hull = sco.convex_hull(points)
-    samples, normals, faces = sco.sample_on_hull(hull, 8192, rng=11)
-    visible = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces)
-    dilated = sco.view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=True)
+    hull = convex_hull(points)
+    samples, normals, faces = sample_on_hull(hull, 8192, rng=11)
+    visible = view_sets(samples, normals, poses, hull=hull, face_ids=faces)
+    dilated = view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=True)
     assert np.all(dilated >= visible) and (dilated & ~visible).sum() > 100
     for n_iter in (1, 2, 9):
         kw = dict(n_iter=n_iter, exclude=(0,), n_samp=8192, rng=11, poses=poses)
-        plain = sco.plan(points, viewspace, **kw)
-        explicit = sco.plan(points, viewspace, dilate=False, **kw)
+        plain = plan(points, viewspace, **kw)
+        explicit = plan(points, viewspace, dilate=False, **kw)
         assert (explicit.views, explicit.gains) == (plain.views, plain.gains)
-        wide = sco.plan(points, viewspace, dilate=True, **kw)
+        wide = plan(points, viewspace, dilate=True, **kw)
         for result, sets in ((plain, visible), (wide, dilated)):
             assert len(set(result.views)) == n_iter and 0 not in result.views
             assert result.gains[0] > 0 and result.gains == sorted(result.gains, reverse=True)
@@ -397,7 +401,7 @@ def test_plan_dilates_the_sets_only_when_asked():
             assert wide.covered_fraction > plain.covered_fraction
         else:
             assert wide.covered_fraction == plain.covered_fraction == 1.0
-    sph = sco.plan_sph(points, viewspace, exclude=(0,), n_samp=4096, rng=0, dilate=True)
+    sph = plan_sph(points, viewspace, exclude=(0,), n_samp=4096, rng=0, dilate=True)
     assert len(set(sph.views)) == 9 and 0 not in sph.views
 
 
@@ -405,24 +409,24 @@ def test_plan_accepts_precomputed_poses_and_rejects_bad_input():
     points = _cube_surface(500, 0.25, np.random.default_rng(7))
     viewspace = original_viewspace()
     poses = viewspace_poses(viewspace)
-    a = sco.plan(points, viewspace, n_iter=3, n_samp=2048, rng=0)
-    b = sco.plan(points, viewspace, n_iter=3, n_samp=2048, rng=0, poses=poses)
+    a = plan(points, viewspace, n_iter=3, n_samp=2048, rng=0)
+    b = plan(points, viewspace, n_iter=3, n_samp=2048, rng=0, poses=poses)
     assert (a.views, a.gains) == (b.views, b.gains)
     with pytest.raises(ValueError, match="no volume"):
-        sco.plan(points * [1.0, 0.0, 1.0], viewspace)
+        plan(points * [1.0, 0.0, 1.0], viewspace)
     with pytest.raises(ValueError, match="method"):
-        sco.plan(points, viewspace, method="blender")
+        plan(points, viewspace, method="blender")
     with pytest.raises(ValueError, match="viewspace"):
-        sco.plan(points, viewspace[:, :2])
+        plan(points, viewspace[:, :2])
     with pytest.raises(ValueError, match="poses"):
-        sco.plan(points, viewspace, poses=poses[:5])
+        plan(points, viewspace, poses=poses[:5])
 
 
 def test_plan_raycast_runs_on_a_small_camera():
     points = _cube_surface(500, 0.25, np.random.default_rng(8))
     # 160 x 120 with the same field of view; pixels 4x farther apart, so a larger eps.
     small = Intrinsics.centred(160, 120, 119.0)
-    result = sco.plan(
+    result = plan(
         points,
         original_viewspace(),
         exclude=(0,),
@@ -438,14 +442,14 @@ def test_plan_raycast_runs_on_a_small_camera():
 def test_plan_sph_uses_the_signature_hull_at_the_centroid():
     centre = np.array([0.05, -0.03, 0.02])
     points = 0.35 * fibonacci_sphere(2000) + centre
-    signature = sco.sph_hull_points(points, lmax=3)
+    signature = sph_hull_points(points, lmax=3)
     assert signature.shape == (64, 3)
     # A sphere's radius function is a constant: the signature lies on the same sphere.
     np.testing.assert_allclose(np.linalg.norm(signature - centre, axis=1), 0.35, atol=1e-6)
     # 64 points on the sphere: their hull holds most of the cloud's hull.
     ratio = ConvexHull(signature).volume / ConvexHull(points).volume
     assert 0.8 < ratio < 1.0
-    result = sco.plan_sph(points, original_viewspace(), exclude=(0,), n_samp=4096, rng=0)
+    result = plan_sph(points, original_viewspace(), exclude=(0,), n_samp=4096, rng=0)
     assert len(set(result.views)) == 9 and 0 not in result.views
     assert result.gains == sorted(result.gains, reverse=True) and result.gains[0] > 0
     assert "signature" in result.timings

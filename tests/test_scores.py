@@ -3,15 +3,14 @@ import itertools
 import numpy as np
 import pytest
 
-from nbv.scores import (
+from nbv.geometry.hull import hull_vertices, hull_volume
+from nbv.geometry.scores import (
     DEFAULT_EPS,
     coverage,
     coverage_bits,
     coverage_from_bits,
     coverage_gains,
     covered_mask,
-    hull_vertices,
-    hull_volume,
     view_hull_vertices,
     vig,
     vig_gains,

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from scipy.special import sph_harm_y
 
-from nbv.sph import (
+from nbv.geometry.sph import (
     angles,
     equiangular_directions,
     evaluate,

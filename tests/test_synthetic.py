@@ -8,11 +8,9 @@ import pytest
 import trimesh
 from PIL import Image
 
-from nbv.synthetic import (
-    CATEGORIES,
+from nbv.assets.categories import CATEGORIES, TRAIN_CATEGORIES, UNSEEN_CATEGORIES
+from nbv.assets.synthetic import (
     DEFAULT_COUNTS,
-    TRAIN_CATEGORIES,
-    UNSEEN_CATEGORIES,
     SyntheticEntry,
     build,
     catalogue,
@@ -92,7 +90,7 @@ def test_same_seed_same_arrays_and_other_index_or_seed_differs():
 
 def test_identical_arrays_in_another_process_with_another_hash_seed():
     code = (
-        "import hashlib; from nbv.synthetic import SyntheticEntry, build; "
+        "import hashlib; from nbv.assets.synthetic import SyntheticEntry, build; "
         "v, f = build(SyntheticEntry('lamp_0002', 'lamp', 'train', 2), 11); "
         "print(hashlib.sha256(v.tobytes() + f.tobytes()).hexdigest())"
     )

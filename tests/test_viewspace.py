@@ -3,7 +3,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nbv.viewspace import (
+from nbv.geometry.viewspace import (
     DATA_DIR,
     PERMUTED_SEED,
     ViewspaceError,

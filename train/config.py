@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from nbv.net import PRECISIONS
-from nbv.synthetic import TRAIN_CATEGORIES
+from nbv.assets.categories import TRAIN_CATEGORIES
+from nbv.models.net import PRECISIONS
 
 SCORES = ("coverage", "vig")
 INPUTS = ("points", "signature")

@@ -28,8 +28,8 @@ from tqdm import tqdm
 
 import nbv.dataset
 from nbv.dataset.reader import DatasetError
-from nbv.episodes import auc, run_episode
-from nbv.net import (
+from nbv.dataset.samples import SampleSet, load_samples
+from nbv.models.net import (
     PCNBV,
     CheckpointError,
     PCNBVConfig,
@@ -39,8 +39,9 @@ from nbv.net import (
     load_checkpoint,
     save_checkpoint,
 )
-from nbv.policies import NetworkPolicy, OraclePolicy, RandomPolicy
-from nbv.samples import SampleSet, load_samples
+from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.episode import auc, run_episode
+from nbv.policies.network import NetworkPolicy
 from train.config import TrainSettings
 from train.metrics import best_view_hits, spearman
 
@@ -167,7 +168,7 @@ def _plain_settings(settings: TrainSettings) -> dict:
 def run(settings: TrainSettings) -> dict:
     """Train one fold; returns the final metrics (see the module docstring).
 
-    Subnormal floats count as zero meanwhile (:func:`nbv.net.flush_denormals`): they appear as
+    Subnormal floats count as zero meanwhile (:func:`nbv.models.net.flush_denormals`): they appear as
     the weights train and slow every CPU step down several times.
     """
     with flush_denormals():

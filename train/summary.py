@@ -23,7 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from nbv.episodes import auc  # noqa: E402
+from nbv.policies.episode import auc  # noqa: E402
 
 
 def find_runs(folder: Path) -> list[Path]:

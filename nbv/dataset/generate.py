@@ -26,21 +26,17 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from nbv import meshes
-from nbv.camera import Intrinsics, backproject, viewspace_poses
-from nbv.dataset.schema import (
-    SCHEMA_VERSION,
-    ModelData,
-    ViewData,
-    assemble_shard,
-    config_json,
-    write_part,
-)
+from nbv.assets.meshes import MeshError, sample_surface
+from nbv.dataset.records import ModelData, ViewData
+from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
+from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
 from nbv.dataset.sources import SourceModel, list_models, load_normalised, stable_seed
-from nbv.render import RenderError, RenderJob, render
-from nbv.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
-from nbv.scores import covered_mask, hull_vertices, hull_volume
-from nbv.viewspace import get_viewspace
+from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
+from nbv.geometry.hull import hull_vertices, hull_volume
+from nbv.geometry.scores import covered_mask
+from nbv.geometry.viewspace import get_viewspace
+from nbv.render.backends import render
+from nbv.render.job import RenderError, RenderJob
 
 BACKENDS = ("blender", "raycast")
 
@@ -265,7 +261,7 @@ def _prepare(model: SourceModel, settings: Settings, poses: np.ndarray):
     """Normalise the mesh and sample the ground truth: (render job, prepared) of one model."""
     rng = np.random.default_rng(stable_seed(settings.seed, model.key))
     mesh, center, scale = load_normalised(model, settings.seed)
-    gt = meshes.sample_surface(mesh, settings.n_gt, rng)
+    gt = sample_surface(mesh, settings.n_gt, rng)
     job = RenderJob(model.key, mesh.vertices, mesh.faces, poses)
     return job, _Prepared(model, center, scale, gt, rng)
 
@@ -349,7 +345,7 @@ def generate(settings: Settings) -> Summary:
                 try:
                     job, prepared[model.key] = _prepare(model, settings, all_poses)
                     jobs.append(job)
-                except (meshes.MeshError, ValueError) as err:
+                except (MeshError, ValueError) as err:
                     summary.failures.append((model.key, str(err)))
                     bar.update()
             results = render(

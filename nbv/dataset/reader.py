@@ -8,8 +8,9 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from nbv.camera import Intrinsics
-from nbv.dataset.schema import ROOT_ATTRS, ModelData, read_model
+from nbv.dataset.records import ModelData
+from nbv.dataset.schema import ROOT_ATTRS, read_model
+from nbv.geometry.camera import Intrinsics
 
 SHARD_GLOB = "shard-*-of-*.h5"
 

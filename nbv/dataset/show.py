@@ -16,9 +16,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from nbv.camera import Intrinsics, project  # noqa: E402
 from nbv.dataset.reader import open_dataset  # noqa: E402
-from nbv.dataset.schema import ModelData  # noqa: E402
+from nbv.dataset.records import ModelData  # noqa: E402
+from nbv.geometry.camera import Intrinsics, project  # noqa: E402
 
 
 def depth_panel(ax, model: ModelData, viewspace: str, v: int, intrinsics: Intrinsics) -> None:

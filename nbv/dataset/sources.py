@@ -2,7 +2,7 @@
 
 Every source yields :class:`SourceModel` records with a key, a category and a split:
 
-* ``synthetic``: the splits of :mod:`nbv.synthetic`'s catalogue.
+* ``synthetic``: the splits of :mod:`nbv.assets.synthetic`'s catalogue.
 * ``shapenet``: models of the 8 training categories go to train / valid / test by a seeded
   shuffle per category (``split_fractions``); the 8 unseen categories are all ``test``.
 * ``stanford``, ``linemod``, ``homebrew``, ``folder``: every model is ``test`` (evaluation sets).
@@ -10,13 +10,17 @@ Every source yields :class:`SourceModel` records with a key, a category and a sp
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from nbv import meshes, synthetic
+from nbv.assets.catalogues import catalogue, shapenet_catalogue
+from nbv.assets.categories import SHAPENET_TRAIN_CATEGORIES
+from nbv.assets.meshes import Mesh, load_mesh, normalise, validate_mesh
+from nbv.assets.synthetic import SyntheticEntry, build
+from nbv.assets.synthetic import catalogue as synthetic_catalogue
+from nbv.utils.seeding import seed_sequence
 
 SOURCES = ("synthetic", "shapenet", "stanford", "linemod", "homebrew", "folder")
 
@@ -39,12 +43,12 @@ class SourceModel:
     split: str
     source: str
     source_path: str
-    synthetic: synthetic.SyntheticEntry | None = None
+    synthetic: SyntheticEntry | None = None
 
 
 def stable_seed(seed: int, name: str) -> np.random.SeedSequence:
     """A seed sequence for ``name`` under ``seed``, the same in every process and run."""
-    return np.random.SeedSequence([int(seed), zlib.crc32(name.encode())])
+    return seed_sequence(seed, name)
 
 
 def assign_splits(
@@ -83,7 +87,7 @@ def list_models(
         source: one of ``SOURCES``.
         root: folder of the meshes (all sources but ``synthetic``).
         categories: ShapeNet categories (names or synset ids); None = the 16 of the paper.
-        counts: synthetic models per split (see :func:`nbv.synthetic.catalogue`).
+        counts: synthetic models per split (see :func:`nbv.assets.synthetic.catalogue`).
         split_fractions: real sources' valid/test fractions of each training category.
         seed: seed of the split shuffle.
 
@@ -95,33 +99,33 @@ def list_models(
     if source == "synthetic":
         return [
             SourceModel(e.key, e.category, e.split, source, "synthetic", e)
-            for e in synthetic.catalogue(counts)
+            for e in synthetic_catalogue(counts)
         ]
     if root is None:
         raise ValueError(f"source={source} needs root=<folder of the meshes>")
     if source == "shapenet":
-        entries = meshes.shapenet_catalogue(root, categories)
+        entries = shapenet_catalogue(root, categories)
     else:
-        entries = meshes.catalogue(source, root)
+        entries = catalogue(source, root)
     split = {e.key: "test" for e in entries}
     if source == "shapenet":
-        for name in meshes.SHAPENET_TRAIN_CATEGORIES:
+        for name in SHAPENET_TRAIN_CATEGORIES:
             keys = [e.key for e in entries if e.category == name]
             rng = np.random.default_rng(stable_seed(seed, name))
             split.update(assign_splits(keys, split_fractions or {}, rng))
     return [SourceModel(e.key, e.category, split[e.key], source, str(e.path)) for e in entries]
 
 
-def load_normalised(model: SourceModel, seed: int) -> tuple[meshes.Mesh, np.ndarray, float]:
+def load_normalised(model: SourceModel, seed: int) -> tuple[Mesh, np.ndarray, float]:
     """The model's mesh normalised into the sphere of radius 0.5, with its centre and scale.
 
     Raises:
         meshes.MeshError: the mesh cannot be read or is unusable (the message names the file).
     """
     if model.synthetic is not None:
-        vertices, faces = synthetic.build(model.synthetic, seed)
-        meshes.validate_mesh(vertices, faces, model.key)
-        mesh = meshes.Mesh(vertices, faces, "synthetic")
+        vertices, faces = build(model.synthetic, seed)
+        validate_mesh(vertices, faces, model.key)
+        mesh = Mesh(vertices, faces, "synthetic")
     else:
-        mesh = meshes.load_mesh(model.source_path)
-    return meshes.normalise(mesh)
+        mesh = load_mesh(model.source_path)
+    return normalise(mesh)

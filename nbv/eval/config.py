@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from nbv.episodes import DEFAULT_START_VIEWS, EPISODE_VIEWS
+from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
 
 #: Every method name, in report order.
 METHODS = (

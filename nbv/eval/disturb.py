@@ -19,8 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nbv.episodes import EpisodeState
-from nbv.policies import HullSCOPolicy, NetworkPolicy
+from nbv.policies.episode import EpisodeState
+from nbv.policies.hull import HullSCOPolicy
+from nbv.policies.network import NetworkPolicy
 
 #: check -> the methods it applies to.
 CHECK_METHODS = {

@@ -17,14 +17,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import nbv.dataset
+from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
 from nbv.dataset.reader import Dataset
 from nbv.eval.config import NETWORK_INPUTS, EvalSettings
 from nbv.eval.disturb import CHECK_METHODS, disturbed
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import Context, EpisodeRecord, episode_rng, make_policy, run_record
-from nbv.policies import NetworkPolicy
-from nbv.synthetic import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
+from nbv.policies.network import NetworkPolicy
 
 
 class EvalDataError(ValueError):
@@ -143,7 +143,7 @@ def load_networks(
     settings: EvalSettings, n_views: int
 ) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
     """The selected network methods' checkpoints: (method -> policy, method -> skip reason)."""
-    from nbv.net import CheckpointError
+    from nbv.models.net import CheckpointError
 
     networks, skipped = {}, {}
     for method, needed in NETWORK_INPUTS.items():

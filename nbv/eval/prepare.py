@@ -13,10 +13,10 @@ import hashlib
 import json
 from pathlib import Path
 
-from nbv.camera import Intrinsics
+from nbv.assets.meshes import MESH_SUFFIXES
 from nbv.dataset.generate import Settings, generate
 from nbv.eval.config import PrepareSettings
-from nbv.meshes import MESH_SUFFIXES
+from nbv.geometry.camera import Intrinsics
 
 #: Written in a prepared folder once the dataset is complete.
 DONE_FILE = "prepared.json"

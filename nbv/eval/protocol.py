@@ -1,8 +1,8 @@
 """The evaluation protocol: which policy a method name means, seeds, and one episode's record.
 
 An episode starts from a start view and lets a method pick views until ``n_views`` are captured
-(:func:`nbv.episodes.run_episode`); coverage and VIG after each view come from the model's
-ground truth (:func:`nbv.episodes.curves`), the AUC is PC-NBV's. Every episode gets its own
+(:func:`nbv.policies.episode.run_episode`); coverage and VIG after each view come from the model's
+ground truth (:func:`nbv.policies.episode.curves`), the AUC is PC-NBV's. Every episode gets its own
 generator, seeded by the run's seed and the names of the method, check, model, viewspace and the
 start view, so a result does not depend on which other episodes ran.
 """
@@ -14,17 +14,13 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from nbv.camera import Intrinsics
-from nbv.dataset.schema import ModelData
-from nbv.episodes import run_episode
+from nbv.dataset.records import ModelData
 from nbv.eval.config import HullSettings
-from nbv.policies import (
-    HullSCOPolicy,
-    HullSCOReplanPolicy,
-    NetworkPolicy,
-    OraclePolicy,
-    RandomPolicy,
-)
+from nbv.geometry.camera import Intrinsics
+from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.episode import run_episode
+from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
+from nbv.policies.network import NetworkPolicy
 
 
 @dataclass
@@ -43,7 +39,7 @@ class EpisodeRecord:
         auc: PC-NBV's AUC of the coverage curve.
         decision_times: seconds of each call of the policy.
         timings: seconds per stage, summed over the episode's decisions (see
-            :mod:`nbv.policies`), plus ``total`` (all decision times) and ``online`` (total
+            :mod:`nbv.policies.policies`), plus ``total`` (all decision times) and ``online`` (total
             without the view simulation, the paper's "online" time).
         notes: what the policy had to work around.
     """

@@ -47,7 +47,7 @@ import torch.nn.functional as F
 from torch import Tensor, nn
 
 #: Written into every checkpoint so that foreign files are recognised.
-CHECKPOINT_FORMAT = "nbv.net.PCNBV"
+CHECKPOINT_FORMAT = "nbv.models.net.PCNBV"
 #: Bumped when the checkpoint layout changes incompatibly.
 CHECKPOINT_VERSION = 1
 #: Arithmetic of forward passes: ``"auto"`` (bf16 where the hardware runs it natively, else

@@ -14,36 +14,21 @@
   merged cloud.
 
 Units are those of the clouds (the normalised object frame: the object fits in a sphere of radius
-0.5). Clouds are ``(N, 3)`` arrays of any float dtype; work is done in float64.
-"""
+0.5). Clouds are ``(N, 3)`` arrays of any float dtype; work is done in float64."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.spatial import ConvexHull, QhullError, cKDTree
+from scipy.spatial import cKDTree
+
+from nbv.geometry.clouds import as_cloud
+from nbv.geometry.hull import hull_vertices, hull_volume
+from nbv.utils.bits import popcount, popcount_rows
 
 #: Coverage threshold: PC-NBV tests squared distance < 5e-5, i.e. Euclidean 0.00707.
 DEFAULT_EPS = 0.00707
-
-#: Principal extents of a cloud below this fraction of the largest count as zero: the cloud is
-#: flat, colinear or a single point and its hull has no volume.
-_RANK_RTOL = 1e-7
-
-# Number of set bits of every byte value; a read-only constant, not mutable state.
-_POPCOUNT = np.array([bin(i).count("1") for i in range(256)], dtype=np.uint8)
-_POPCOUNT.setflags(write=False)
-
-
-def as_cloud(points: np.ndarray, name: str) -> np.ndarray:
-    """``points`` as a float64 ``(N, 3)`` array with finite values, or a clear ValueError."""
-    arr = np.asarray(points, dtype=np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (N, 3), got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise ValueError(f"{name} holds non-finite values (nan or inf); only finite points allowed")
-    return arr
 
 
 def _as_view_state(view_state: np.ndarray, n_views: int) -> np.ndarray:
@@ -55,11 +40,6 @@ def _as_view_state(view_state: np.ndarray, n_views: int) -> np.ndarray:
             raise ValueError("view_state must hold booleans (or 0/1), got other values")
         state = state.astype(bool)
     return state
-
-
-# --------------------------------------------------------------------------------------------
-# Coverage
-# --------------------------------------------------------------------------------------------
 
 
 def covered_mask(partial: np.ndarray, gt: np.ndarray, eps: float = DEFAULT_EPS) -> np.ndarray:
@@ -146,7 +126,7 @@ def coverage_from_bits(bits: np.ndarray, view_state: np.ndarray, n_gt: int) -> f
     if selected.shape[0] == 0:
         return 0.0
     union = np.bitwise_or.reduce(selected, axis=0)
-    return int(_POPCOUNT[union].sum(dtype=np.int64)) / n_gt
+    return int(popcount(union).sum(dtype=np.int64)) / n_gt
 
 
 def coverage_gains(bits: np.ndarray, view_state: np.ndarray, n_gt: int) -> np.ndarray:
@@ -170,82 +150,9 @@ def coverage_gains(bits: np.ndarray, view_state: np.ndarray, n_gt: int) -> np.nd
         union = np.zeros(bits.shape[1], dtype=np.uint8)
     # Bits a view covers that the state does not: its gain, counted without a second popcount.
     new = bits & ~union
-    gains = _POPCOUNT[new].sum(axis=1, dtype=np.int64) / n_gt
+    gains = popcount_rows(new) / n_gt
     gains[state] = 0.0
     return gains
-
-
-# --------------------------------------------------------------------------------------------
-# Convex hulls and VIG
-# --------------------------------------------------------------------------------------------
-
-
-def _principal_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """Centroid, principal axes (rows of a 3x3, widest first) and numerical rank of a cloud.
-
-    From the 3x3 scatter matrix (an SVD of the whole cloud costs as much as Qhull): it resolves
-    extents down to about 1e-8 of the largest, hence the tolerance :data:`_RANK_RTOL`.
-    """
-    # A matrix-vector product: much faster than points.mean(axis=0) on an (N, 3) array.
-    centroid = np.full(len(points), 1.0 / len(points)) @ points
-    centred = points - centroid
-    eigval, eigvec = np.linalg.eigh(centred.T @ centred)
-    spread = np.sqrt(np.clip(eigval[::-1], 0.0, None))
-    # Rounding in the centroid leaves spread of order eps * |points| even for identical points.
-    noise = 64.0 * np.finfo(np.float64).eps * np.sqrt(len(points)) * np.abs(points).max()
-    rank = int(np.count_nonzero(spread > max(_RANK_RTOL * spread[0], noise)))
-    return centroid, eigvec[:, ::-1].T, rank
-
-
-def _hull(points: np.ndarray) -> ConvexHull | None:
-    """Qhull's 3-D hull of a float64 ``(N, 3)`` cloud, or None when it has no volume."""
-    if len(points) < 4:
-        return None
-    _, _, rank = _principal_frame(points)
-    if rank < 3:
-        return None
-    try:
-        return ConvexHull(points)
-    except QhullError:
-        # Nearly flat clouds that pass the rank test may still defeat Qhull's initial simplex.
-        return None
-
-
-def hull_volume(points: np.ndarray) -> float:
-    """Volume of the convex hull of an ``(N, 3)`` cloud (Qhull), in cubed cloud units.
-
-    Degenerate input (fewer than 4 points, duplicates only, colinear or flat points, an empty
-    cloud) has no volume and gives 0.0; it never raises for those. Non-finite values raise a
-    ValueError.
-    """
-    hull = _hull(as_cloud(points, "points"))
-    return 0.0 if hull is None else float(hull.volume)
-
-
-def hull_vertices(points: np.ndarray) -> np.ndarray:
-    """Points of an ``(N, 3)`` cloud that span its convex hull: ``(K, 3)`` float64, no duplicates.
-
-    ``hull(hull_vertices(A) | hull_vertices(B)) == hull(A | B)`` for any clouds, which makes
-    hulls of view unions cheap. Degenerate clouds keep their lower-dimensional extreme points:
-    the 2-D hull vertices of a flat cloud, the two ends of a colinear one, the single point of an
-    all-duplicate one. An empty cloud gives ``(0, 3)``.
-    """
-    pts = as_cloud(points, "points")
-    if len(pts) == 0:
-        return np.zeros((0, 3))
-    centroid, axes, rank = _principal_frame(pts)
-    try:
-        if rank == 3:
-            return pts[ConvexHull(pts).vertices]
-        if rank == 2:
-            planar = (pts - centroid) @ axes[:2].T
-            return pts[ConvexHull(planar).vertices]
-    except QhullError:
-        return np.unique(pts, axis=0)
-    if rank == 1:
-        t = (pts - centroid) @ axes[0]
-        return pts[[int(np.argmin(t)), int(np.argmax(t))]]
-    return pts[:1].copy()
 
 
 def _gt_volume(gt_volume: float) -> float:

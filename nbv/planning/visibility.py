@@ -3,25 +3,25 @@
 A convex surface cannot occlude itself, so a point ``p`` with outward normal ``n`` is seen from a
 camera centred at ``c`` exactly when its face looks at the camera, ``n . (c - p) > 0``, and it
 projects inside the image, ``0 <= u <= W - 1`` and ``0 <= v <= H - 1`` (pixel-centre coordinates
-of :mod:`nbv.camera`) in front of the camera. Both are sign tests of dot products: with the
+of :mod:`nbv.geometry.camera`) in front of the camera. Both are sign tests of dot products: with the
 camera centre, and with the five half-spaces of each camera's image (:func:`_frustum_planes`,
 planes through the camera centre), for all views and points at once
 (:func:`analytic_visibility`). On the samples of a convex hull, :func:`analytic_visibility_faces`
 gives the same answer with much less work by deciding whole triangles at once, from
 :func:`facing_triangles` and :func:`corners_in_image`. A ``margin``
-widens the image by a distance: :mod:`nbv.dilation` uses it to find the samples just outside the
+widens the image by a distance: :mod:`nbv.planning.dilation` uses it to find the samples just outside the
 image.
 
-These visible sets are the ``"analytic"`` view simulation of :func:`nbv.sco.view_sets` without
+These visible sets are the ``"analytic"`` view simulation of :func:`nbv.planning.sco.view_sets` without
 dilation. Measured against its ray-cast sets at 640 x 480, ``eps = 0.00707``, 33 views at
 distance 1, 4096 samples, on (view, sample) pairs, they agree on 99.07 % for a sphere and
 98.57 % for a box, on 96.9 to 98.9 % for hulls of single full-resolution views of common test
 meshes, and on 61 % for a flat one, whose back lies within ``eps`` of its front (the dilated
-sets: see :mod:`nbv.dilation`).
+sets: see :mod:`nbv.planning.dilation`).
 
 Distances are in world units; poses are camera-to-world, OpenCV convention. The underscored
-helpers (argument checks, frustum planes, index ranges) also serve :mod:`nbv.dilation` and
-:mod:`nbv.sco`; they are not a public interface.
+helpers (argument checks, frustum planes, index ranges) also serve :mod:`nbv.planning.dilation` and
+:mod:`nbv.planning.sco`; they are not a public interface.
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from nbv.camera import Intrinsics
-from nbv.scores import as_cloud
+from nbv.geometry.camera import Intrinsics
+from nbv.geometry.clouds import as_cloud
 
 #: A face counts as turned towards the camera when ``n . (c - p)`` exceeds this (cloud units):
 #: faces whose plane passes through the camera centre are seen edge-on and capture nothing.
@@ -101,7 +101,7 @@ def analytic_visibility(
         margin: widen the image by this distance (world units, ``>= 0``): a facing point also
             counts when it lies outside the image but within ``margin`` of each of the four
             planes through the camera centre and the image borders
-            (:func:`nbv.dilation.dilate_view_sets` finds the samples just outside the image
+            (:func:`nbv.planning.dilation.dilate_view_sets` finds the samples just outside the image
             with ``margin = eps``). ``0`` is the exact test above.
 
     Returns:

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 #: The viewspace files that ship with the project.
-DATA_DIR = Path(__file__).resolve().parent.parent / "data" / "viewspaces"
+DATA_DIR = Path(__file__).resolve().parents[2] / "data" / "viewspaces"
 #: The seed of the shipped permuted viewspace.
 PERMUTED_SEED = 2024
 #: Elevation band of the original viewspace, degrees.

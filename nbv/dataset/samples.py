@@ -9,7 +9,7 @@ that the samples also hold states the oracle would not visit. Before each pick a
   ``n_points`` points,
 * ``view_state``: (V,) bool, the visited views,
 * ``target``: (V,) the gain each view would add to the score (0 for visited views),
-* ``signature``: the spherical-harmonics signature (:func:`nbv.sph.signature`) of the accumulated
+* ``signature``: the spherical-harmonics signature (:func:`nbv.geometry.sph.signature`) of the accumulated
   cloud at ``lmax``,
 * ``value``: the score of the state itself.
 
@@ -42,16 +42,17 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import fpsample
 import h5py
 import numpy as np
 from tqdm import tqdm
 
 from nbv.dataset.reader import Dataset, DatasetError, shard_files
-from nbv.dataset.schema import ModelData, fsync_replace, write_strings
+from nbv.dataset.records import ModelData
+from nbv.dataset.schema import fsync_replace, write_strings
 from nbv.dataset.sources import stable_seed
-from nbv.scores import coverage_from_bits, coverage_gains, vig_gains, vig_of_state
-from nbv.sph import signature
+from nbv.geometry.clouds import farthest_points
+from nbv.geometry.scores import coverage_from_bits, coverage_gains, vig_gains, vig_of_state
+from nbv.geometry.sph import signature
 
 SCORES = ("coverage", "vig")
 SCHEMA_VERSION = 1
@@ -81,23 +82,6 @@ class SampleSettings:
                 "samples.trajectories, steps and n_points must be >= 1 and lmax >= 0, got "
                 f"{self.trajectories}, {self.steps}, {self.n_points}, {self.lmax}"
             )
-
-
-def farthest_points(points: np.ndarray, n: int) -> np.ndarray:
-    """Farthest point sampling (fpsample's bucket QuickFPS): (N, 3) -> (n, 3).
-
-    Exact farthest point sampling; the first point is the first of fpsample's internal kd-tree
-    order (``start_idx=0`` indexes that order, not the input), so the result is deterministic.
-
-    Clouds with fewer than ``n`` points are returned whole, then repeated cyclically to ``n``.
-    """
-    if len(points) <= n:
-        return points[np.arange(n) % len(points)]
-    # Bucket height 7 was fastest on 10^4-10^5 points; fpsample needs 2**h <= len(points).
-    # It runs a third faster on float32 than on float64.
-    height = min(7, int(np.log2(len(points))))
-    coords = np.ascontiguousarray(points, dtype=np.float32)
-    return points[fpsample.bucket_fps_kdline_sampling(coords, n, height, start_idx=0)]
 
 
 def walk(

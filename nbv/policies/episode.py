@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nbv.dataset.schema import ModelData
-from nbv.scores import coverage_from_bits, vig_of_state
+from nbv.dataset.records import ModelData
+from nbv.geometry.scores import coverage_from_bits, vig_of_state
 
 #: The start views of the evaluation protocol (indices into the original viewspace).
 DEFAULT_START_VIEWS = (1, 3, 7, 10, 15, 24, 27, 30)

@@ -32,30 +32,8 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-#: PC-NBV's 8 training categories, in ShapeNet's order.
-TRAIN_CATEGORIES: tuple[str, ...] = (
-    "airplane",
-    "cabinet",
-    "car",
-    "chair",
-    "lamp",
-    "sofa",
-    "table",
-    "vessel",
-)
-#: PC-NBV's 8 unseen test categories.
-UNSEEN_CATEGORIES: tuple[str, ...] = (
-    "bus",
-    "bed",
-    "bookshelf",
-    "bench",
-    "guitar",
-    "motorbike",
-    "skateboard",
-    "pistol",
-)
-#: All 16 categories: the training ones, then the unseen ones.
-CATEGORIES: tuple[str, ...] = TRAIN_CATEGORIES + UNSEEN_CATEGORIES
+from nbv.assets.categories import CATEGORIES, TRAIN_CATEGORIES
+
 #: Models per category of the default dataset: per split for the training categories, and
 #: ``unseen`` (all in split "test") for the unseen ones; 8 * 6 + 8 * 2 = 64 models.
 DEFAULT_COUNTS: dict[str, int] = {"train": 4, "valid": 1, "test": 1, "unseen": 2}

@@ -8,49 +8,41 @@ views follows (``--no-network`` skips it; trained weights from ``--checkpoint``,
 0's ``best.pt`` when it exists), and the last rows compare the two rendering backends
 (``--no-render`` skips them).
 
-Targets (issues 3, 4 and 5) are printed beside the measured times; the paper's are in FACTS.md.
-"""
+Targets (issues 3, 4 and 5) are printed beside the measured times; the paper's are in FACTS.md."""
 
 from __future__ import annotations
 
 import argparse
 import json
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 from scipy.spatial import ConvexHull, cKDTree
 
-from nbv import meshes, sco, sph, synthetic
-from nbv.camera import Intrinsics, backproject, viewspace_poses
-from nbv.render import render_raycast
-from nbv.samples import farthest_points
-from nbv.scores import (
+from nbv.assets.meshes import Mesh, normalise, sample_surface
+from nbv.assets.synthetic import build, catalogue
+from nbv.bench.timing import best_time
+from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
+from nbv.geometry.clouds import farthest_points
+from nbv.geometry.hull import hull_volume
+from nbv.geometry.scores import (
     DEFAULT_EPS,
     coverage_bits,
     coverage_from_bits,
-    hull_volume,
     view_hull_vertices,
     vig_of_state,
 )
-from nbv.viewspace import original_viewspace
+from nbv.geometry.sph import equiangular_directions, signature, unit_vectors
+from nbv.geometry.viewspace import original_viewspace
+from nbv.planning.hull import convex_hull, sample_hull
+from nbv.planning.planner import Plan
+from nbv.planning.planner import plan as sco_plan
+from nbv.planning.set_cover import greedy_max_coverage
+from nbv.planning.view_sets import view_sets
+from nbv.render.raycast import render_raycast
 
 #: The checkpoint of ``python -m train fold=0``, timed by the episode row when it exists.
 FOLD0_CHECKPOINT = Path("outputs/train/pcnbv_coverage_fold0/best.pt")
-
-
-def best_time(fn: Callable[[], object], repeat: int = 5, budget: float = 3.0) -> float:
-    """Best wall time of ``fn`` in seconds over up to ``repeat`` runs (stops after ``budget`` s)."""
-    best, spent = np.inf, 0.0
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        dt = time.perf_counter() - t0
-        best, spent = min(best, dt), spent + dt
-        if spent > budget:
-            break
-    return best
 
 
 def numpy_fps(points: np.ndarray, n: int, start: int = 0) -> np.ndarray:
@@ -86,9 +78,9 @@ def scipy_signature(points: np.ndarray, lmax: int) -> np.ndarray:
     theta = np.arccos(np.clip(centred[:, 2] / r, -1, 1))
     phi = np.arctan2(centred[:, 1], centred[:, 0])
     coeffs = np.linalg.lstsq(design(theta, phi), r, rcond=None)[0]
-    grid_theta, grid_phi = sph.equiangular_directions(lmax)
+    grid_theta, grid_phi = equiangular_directions(lmax)
     radius = design(grid_theta, grid_phi) @ coeffs
-    return radius[:, None] * sph.unit_vectors(grid_theta, grid_phi)
+    return radius[:, None] * unit_vectors(grid_theta, grid_phi)
 
 
 def python_greedy(sets: np.ndarray, n_iter: int, exclude: tuple[int, ...]) -> list[int]:
@@ -114,9 +106,9 @@ def rng_pick(n: int, k: int, seed: int) -> np.ndarray:
 def bench_scene(seed: int = 0) -> dict:
     """The benchmark's data: full-resolution views of a synthetic chair and its ground truth."""
     rng = np.random.default_rng(seed)
-    entry = next(e for e in synthetic.catalogue() if e.category == "chair")
-    vertices, faces = synthetic.build(entry, seed)
-    mesh, _, _ = meshes.normalise(meshes.Mesh(vertices, faces))
+    entry = next(e for e in catalogue() if e.category == "chair")
+    vertices, faces = build(entry, seed)
+    mesh, _, _ = normalise(Mesh(vertices, faces))
     intrinsics = Intrinsics.centred()
     poses = viewspace_poses(original_viewspace())
     depth = render_raycast(mesh.vertices, mesh.faces, poses, intrinsics)
@@ -126,7 +118,7 @@ def bench_scene(seed: int = 0) -> dict:
     return {
         "mesh": mesh,
         "views": views,
-        "gt": meshes.sample_surface(mesh, 16384, rng).astype(np.float64),
+        "gt": sample_surface(mesh, 16384, rng).astype(np.float64),
         "cloud100k": cloud,
         "poses": poses,
         "intrinsics": intrinsics,
@@ -154,9 +146,9 @@ def run(
     # The planner sees a start view as the dataset stores it (points_per_view = 2048).
     start_cloud = views[1][rng_pick(len(views[1]), 2048, seed)]
     start_hull = start_cloud[ConvexHull(start_cloud).vertices]
-    samples, normals, face_ids = sco.sample_hull(start_hull, 16384, np.random.default_rng(seed))
-    hull = sco.convex_hull(start_hull)
-    sets = sco.view_sets(samples, normals, scene["poses"], scene["intrinsics"])
+    samples, normals, face_ids = sample_hull(start_hull, 16384, np.random.default_rng(seed))
+    hull = convex_hull(start_hull)
+    sets = view_sets(samples, normals, scene["poses"], scene["intrinsics"])
     rows = []
 
     def row(name, ours, reference, target, note=""):
@@ -186,14 +178,14 @@ def run(
     )
     row(
         "signature 100k points, lmax 3",
-        lambda: sph.signature(cloud, 3),
+        lambda: signature(cloud, 3),
         lambda: scipy_signature(cloud, 3),
         0.020,
         "recurrences vs scipy+lstsq",
     )
     row(
         "signature 100k points, lmax 10",
-        lambda: sph.signature(cloud, 10),
+        lambda: signature(cloud, 10),
         lambda: scipy_signature(cloud, 10),
         None,
         "recurrences vs scipy+lstsq",
@@ -214,10 +206,8 @@ def run(
     )
     row(
         "view simulation, 33 views on a hull",
-        lambda: sco.view_sets(
-            samples, normals, scene["poses"], scene["intrinsics"], face_ids=face_ids
-        ),
-        lambda: sco.view_sets(
+        lambda: view_sets(samples, normals, scene["poses"], scene["intrinsics"], face_ids=face_ids),
+        lambda: view_sets(
             samples, normals, scene["poses"], scene["intrinsics"], method="raycast", hull=hull
         ),
         None,
@@ -225,14 +215,14 @@ def run(
     )
     row(
         "greedy set cover, 9 of 33 views",
-        lambda: sco.greedy_max_coverage(sets, 9, (1,)),
+        lambda: greedy_max_coverage(sets, 9, (1,)),
         lambda: python_greedy(sets, 9, (1,)),
         0.001,
         "packed bits vs Python sets",
     )
 
-    def plan(**kw) -> sco.Plan:
-        return sco.plan(start_cloud, original_viewspace(), exclude=(1,), poses=scene["poses"], **kw)
+    def plan(**kw) -> Plan:
+        return sco_plan(start_cloud, original_viewspace(), exclude=(1,), poses=scene["poses"], **kw)
 
     row(
         "whole 9-view plan (hull+sim+sets+greedy), 2048-point start view",
@@ -249,7 +239,7 @@ def run(
         "dilated analytic vs ray-cast simulation",
     )
     if network:
-        from nbv.bench_network import episode_seconds
+        from nbv.bench.network import episode_seconds
 
         # The views as the dataset stores them (points_per_view = 2048), start view 1.
         stored = [v[rng_pick(len(v), 2048, seed + i)] for i, v in enumerate(views)]
@@ -270,7 +260,7 @@ def run(
 
         import trimesh
 
-        from nbv.bench_render import benchmark
+        from nbv.bench.render import benchmark
 
         with tempfile.TemporaryDirectory() as folder:
             # The dataset's meshes are small: time a synthetic chair too, beside the 50k torus.

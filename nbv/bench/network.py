@@ -2,8 +2,8 @@
 
 An episode starts from one captured view and asks the network nine times for the next view; each
 decision farthest-point samples the accumulated cloud to the network's points and runs one
-forward pass. The project's path is :class:`nbv.policies.NetworkPolicy` on the inference copy of
-the network (:func:`nbv.net.for_inference`: batch norm folded, bfloat16 where the CPU runs it
+forward pass. The project's path is :class:`nbv.policies.policies.NetworkPolicy` on the inference copy of
+the network (:func:`nbv.models.net.for_inference`: batch norm folded, bfloat16 where the CPU runs it
 natively, subnormals flushed); the reference is the plain float32 network called the same way.
 
 Untrained weights cost what trained ones cost only because subnormals are flushed in the
@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from nbv.bench import best_time
-from nbv.episodes import EPISODE_VIEWS
-from nbv.samples import farthest_points
+from nbv.bench.timing import best_time
+from nbv.geometry.clouds import farthest_points
+from nbv.policies.episode import EPISODE_VIEWS
 
 
 def network_episode(
@@ -49,7 +49,7 @@ def load_network(checkpoint: Path | None, n_views: int = 33):
     in eval mode."""
     import torch
 
-    from nbv.net import PCNBV, PCNBVConfig, load_checkpoint
+    from nbv.models.net import PCNBV, PCNBVConfig, load_checkpoint
 
     if checkpoint is not None:
         net, _ = load_checkpoint(checkpoint, n_views=n_views)
@@ -62,7 +62,7 @@ def plain_decider(net, n_points: int) -> Callable[[np.ndarray, np.ndarray], int]
     """The reference decision: farthest point sampling and a plain float32 forward pass."""
     import torch
 
-    from nbv.net import masked_argmax
+    from nbv.models.net import masked_argmax
 
     def decide(cloud: np.ndarray, state: np.ndarray) -> int:
         x = torch.from_numpy(np.ascontiguousarray(farthest_points(cloud, n_points), np.float32))
@@ -82,8 +82,8 @@ def episode_seconds(
 ) -> dict[str, float]:
     """Best wall time of a whole episode over ``repeat`` runs, for the project's path
     (``"ours"``) and the plain float32 network (``"reference"``), in seconds."""
-    from nbv.net import for_inference
-    from nbv.policies import NetworkPolicy
+    from nbv.models.net import for_inference
+    from nbv.policies.network import NetworkPolicy
 
     net = load_network(checkpoint, len(views))
     policy = NetworkPolicy(for_inference(net, "auto"), n_points=n_points, precision="auto")

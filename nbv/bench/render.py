@@ -1,9 +1,9 @@
 """Benchmark the depth renderers: seconds a view for Blender and ray casting, in the same run.
 
-``python -m nbv.bench_render [--views 33] [--threads 2] [--meshes DIR | --no-meshes]`` renders
+``python -m nbv.bench.render [--views 33] [--threads 2] [--meshes DIR | --no-meshes]`` renders
 a 50k-triangle mesh (and every OBJ of ``--meshes``, by default ``../shared/meshes`` beside the
 checkout when it exists) at 640 x 480 from the original viewspace with both backends,
-back-projects every view (:func:`nbv.camera.backproject`), checks that the backends agree and
+back-projects every view (:func:`nbv.geometry.camera.backproject`), checks that the backends agree and
 prints a table.
 
 Blender's time a view is measured in steady state: the process first renders one view of the
@@ -22,12 +22,14 @@ from pathlib import Path
 
 import numpy as np
 
-from nbv.camera import Intrinsics, backproject, valid_depth, viewspace_poses
-from nbv.render import RenderError, RenderJob, render, render_raycast
-from nbv.viewspace import original_viewspace
+from nbv.geometry.camera import Intrinsics, backproject, valid_depth, viewspace_poses
+from nbv.geometry.viewspace import original_viewspace
+from nbv.render.backends import render
+from nbv.render.job import RenderError, RenderJob
+from nbv.render.raycast import render_raycast
 
 #: Development meshes beside a checkout (not part of the project), used when present.
-SHARED_MESHES = Path(__file__).resolve().parents[2] / "shared" / "meshes"
+SHARED_MESHES = Path(__file__).resolve().parents[3] / "shared" / "meshes"
 #: Agreement threshold between the backends, world units.
 AGREEMENT_TOL = 1e-4
 

@@ -1,0 +1,196 @@
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from nbv.geometry.camera import Intrinsics, viewspace_poses
+from nbv.geometry.clouds import as_cloud
+from nbv.geometry.scores import DEFAULT_EPS
+from nbv.geometry.sph import signature_with_centroid
+from nbv.planning.hull import DEFAULT_N_SAMP, convex_hull, sample_on_hull
+from nbv.planning.set_cover import DEFAULT_N_ITER, _as_exclude, greedy_packed, pack_sets
+from nbv.planning.view_sets import METHODS, view_sets
+from nbv.planning.visibility import _as_poses
+
+
+@dataclass
+class Plan:
+    """A set-cover plan.
+
+    Attributes:
+        views: the chosen view indices, in the order they were picked (``n_iter`` of them).
+        gains: number of hull samples each pick newly covers (non-increasing: greedy on a
+            coverage function).
+        covered_fraction: fraction of the hull samples covered by the excluded (already visited)
+            views and the chosen views together, in [0, 1].
+        timings: seconds spent on ``hull``, ``sampling``, ``simulation``, ``sets``, ``greedy``
+            and their ``total``.
+    """
+
+    views: list[int]
+    gains: list[int]
+    covered_fraction: float
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def _as_viewspace(viewspace: np.ndarray) -> np.ndarray:
+    arr = np.asarray(viewspace, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
+        raise ValueError(f"viewspace must have shape (V, 3) with V >= 1, got {arr.shape}")
+    return arr
+
+
+def _plan_on_cloud(
+    points: np.ndarray,
+    viewspace: np.ndarray,
+    n_iter: int,
+    exclude: Iterable[int],
+    n_samp: int,
+    rng: np.random.Generator | int,
+    method: str,
+    intrinsics: Intrinsics,
+    eps: float,
+    poses: np.ndarray | None,
+    timings: dict[str, float],
+    dilate: bool = False,
+) -> Plan:
+    """Algorithms 2 and 3 on the hull of ``points``; adds its stage times to ``timings``."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    viewspace = _as_viewspace(viewspace)
+    excluded = _as_exclude(exclude, len(viewspace))
+    clock = time.perf_counter
+    t0 = clock()
+    hull = convex_hull(points)
+    t1 = clock()
+    samples, normals, face_ids = sample_on_hull(hull, n_samp, rng)
+    t2 = clock()
+    poses = viewspace_poses(viewspace) if poses is None else _as_poses(poses)
+    if len(poses) != len(viewspace):
+        raise ValueError(f"poses has {len(poses)} cameras, the viewspace {len(viewspace)}")
+    sets = view_sets(samples, normals, poses, intrinsics, method, eps, hull, face_ids, dilate)
+    t3 = clock()
+    rows = pack_sets(sets)
+    t4 = clock()
+    views, gains, n_covered = greedy_packed(rows, n_iter, excluded, viewspace)
+    t5 = clock()
+    for key, seconds in (
+        ("hull", t1 - t0),
+        ("sampling", t2 - t1),
+        ("simulation", t3 - t2),
+        ("sets", t4 - t3),
+        ("greedy", t5 - t4),
+    ):
+        timings[key] = timings.get(key, 0.0) + seconds
+    timings["total"] = sum(
+        timings[k]
+        for k in ("signature", "hull", "sampling", "simulation", "sets", "greedy")
+        if k in timings
+    )
+    return Plan(views, gains, n_covered / len(samples), timings)
+
+
+def plan(
+    points: np.ndarray,
+    viewspace: np.ndarray,
+    n_iter: int = DEFAULT_N_ITER,
+    exclude: Iterable[int] = (),
+    n_samp: int = DEFAULT_N_SAMP,
+    rng: np.random.Generator | int = 0,
+    method: str = "analytic",
+    intrinsics: Intrinsics = Intrinsics(),  # noqa: B008 - frozen dataclass, immutable default
+    eps: float = DEFAULT_EPS,
+    poses: np.ndarray | None = None,
+    dilate: bool = False,
+) -> Plan:
+    """Convex-hull set-cover plan from a partial cloud (the paper's Algorithms 2 and 3).
+
+    Args:
+        points: ``(N, 3)`` partial cloud (what the visited views saw), world units.
+        viewspace: ``(V, 3)`` camera positions; every camera looks at the origin.
+        n_iter: number of views to plan, ``<= V - len(exclude)``. Once the hull is covered,
+            the remaining picks spread out over the viewspace (see
+            :func:`greedy_max_coverage` with ``positions=viewspace``).
+        exclude: indices of the views already visited (the start view): never chosen, and the
+            hull samples they capture count as covered before the first pick.
+        n_samp: number of hull samples.
+        rng: numpy Generator or integer seed (only the sampling is random).
+        method: view simulation, ``"analytic"`` or ``"raycast"`` (see :func:`view_sets`).
+        intrinsics: the camera.
+        eps: capture distance, world units: of ``"raycast"``, and of ``"analytic"`` with
+            ``dilate`` (see :func:`view_sets`).
+        poses: ``(V, 4, 4)`` :func:`nbv.geometry.camera.viewspace_poses` of ``viewspace``, when the
+            caller has them already (they are the same for every plan on one viewspace).
+        dilate: with ``"analytic"``, dilate the visible sets by ``eps`` (:mod:`nbv.planning.dilation`):
+            the samples within ``eps`` of a pixel's point just behind the silhouette or just
+            outside the image count too, as they do for ``"raycast"``. Closer to ``"raycast"``
+            but about 4x slower, far more on hulls of many small triangles (measured in the
+            module docstring). Off by default. ``"raycast"`` ignores it.
+
+    Returns:
+        :class:`Plan`.
+
+    Raises:
+        ValueError: for a cloud whose hull has no volume (flat, colinear, fewer than 4 points)
+            and for bad arguments.
+    """
+    return _plan_on_cloud(
+        points, viewspace, n_iter, exclude, n_samp, rng, method, intrinsics, eps, poses, {}, dilate
+    )
+
+
+def sph_hull_points(points: np.ndarray, lmax: int = 3) -> np.ndarray:
+    """The spherical signature of a cloud in world coordinates (at the cloud's centroid).
+
+    Args:
+        points: ``(N, 3)`` cloud, world units.
+        lmax: maximum harmonic degree (the paper's 3).
+
+    Returns:
+        ``(4 (lmax + 1)^2, 3)`` float64 points: :func:`nbv.geometry.sph.signature_with_centroid` shifted
+        by the centroid.
+    """
+    signature, centroid = signature_with_centroid(as_cloud(points, "points"), lmax)
+    return signature.astype(np.float64) + centroid
+
+
+def plan_sph(
+    points: np.ndarray,
+    viewspace: np.ndarray,
+    lmax: int = 3,
+    n_iter: int = DEFAULT_N_ITER,
+    exclude: Iterable[int] = (),
+    n_samp: int = DEFAULT_N_SAMP,
+    rng: np.random.Generator | int = 0,
+    method: str = "analytic",
+    intrinsics: Intrinsics = Intrinsics(),  # noqa: B008 - frozen dataclass, immutable default
+    eps: float = DEFAULT_EPS,
+    poses: np.ndarray | None = None,
+    dilate: bool = False,
+) -> Plan:
+    """Convex-hull set cover on the hull of the cloud's spherical signature.
+
+    Same as :func:`plan` (``dilate`` included: off by default, see there for its cost), but the
+    hull is that of :func:`sph_hull_points` (the signature of degree ``lmax`` placed at the
+    cloud's centroid) instead of the cloud's own. ``timings`` gets a ``signature`` entry too.
+    """
+    t0 = time.perf_counter()
+    signature = sph_hull_points(points, lmax)
+    timings = {"signature": time.perf_counter() - t0}
+    return _plan_on_cloud(
+        signature,
+        viewspace,
+        n_iter,
+        exclude,
+        n_samp,
+        rng,
+        method,
+        intrinsics,
+        eps,
+        poses,
+        timings,
+        dilate,
+    )

@@ -1,0 +1,170 @@
+"""Convex-hull set cover as a policy: one-shot from the start view, or replanned after every view."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from nbv.geometry.camera import Intrinsics
+from nbv.geometry.scores import DEFAULT_EPS
+from nbv.planning.hull import convex_hull
+from nbv.planning.planner import Plan, plan, sph_hull_points
+from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
+from nbv.policies.inputs import _NO_SPREAD, _cloud_or_origin, _has_spread, _record
+
+#: Relative thickness given to a cloud whose hull has no volume (see :func:`thicken`).
+THICKEN_RTOL = 1e-3
+
+
+def thicken(points: np.ndarray, rtol: float = THICKEN_RTOL) -> np.ndarray:
+    """A cloud with volume around a flat (or colinear, or single-point) one.
+
+    Every point is copied six times, shifted by ``+-delta`` along each axis, with ``delta =
+    rtol * max(extent, 1)`` (``extent`` = the largest side of the bounding box, cloud units), so
+    a flat cloud becomes a slab ``2 delta`` thick whose two sides face the two half-spaces.
+
+    Args:
+        points: (N, 3) float, N >= 1.
+        rtol: thickness relative to the cloud's extent.
+
+    Returns:
+        (6 N, 3) float64.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    extent = float(np.ptp(pts, axis=0).max()) if len(pts) else 0.0
+    delta = rtol * max(extent, 1.0)
+    shifts = np.concatenate([np.eye(3), -np.eye(3)]) * delta
+    return (pts[None] + shifts[:, None]).reshape(-1, 3)
+
+
+@dataclass
+class HullSCOPolicy:
+    """Convex-hull set cover, one-shot (the paper's Algorithms 2 and 3).
+
+    On the first call, with ``probes == 0``: plan every remaining view from the start view's
+    cloud (:func:`nbv.planning.sco.plan`, or :func:`nbv.planning.sco.plan_sph` with ``sph``), excluding the
+    visited views, and return the plan; the episode takes it in order. With ``probes = k``:
+    first return ``k`` seeded random unvisited views (they count in the episode); on the next
+    call plan from the start view's cloud plus ``probe_points`` random points of each probe
+    view (the paper's "three random views with 100 points").
+
+    A cloud whose hull has no volume (a flat object, a view that saw a plane) is planned on
+    :func:`thicken`'s slab around it, and a note says so.
+
+    Attributes:
+        rng: generator of the probe views, probe points and the hull samples.
+        sph: plan on the hull of the cloud's spherical signature of degree ``lmax``.
+        probes, probe_points: see above.
+        n_views: views in an episode (start view included): the plan fills it.
+        n_samp: points drawn on the hull.
+        method: view simulation, ``analytic`` (fast) or ``raycast`` (see :mod:`nbv.planning.sco`).
+        dilate: with ``analytic``, dilate each view's visible hull points by ``eps``
+            (:mod:`nbv.planning.dilation`): closer to ``raycast``, but slower (see :mod:`nbv.planning.sco`).
+            Off by default.
+        intrinsics: the camera of the dataset.
+        eps: capture distance: of the ``raycast`` simulation, and of the ``analytic`` one's
+            dilation with ``dilate`` (the hull points within ``eps`` of a pixel's point count
+            as captured).
+    """
+
+    rng: np.random.Generator
+    sph: bool = False
+    lmax: int = 3
+    probes: int = 0
+    probe_points: int = 100
+    n_views: int = EPISODE_VIEWS
+    n_samp: int = 16384
+    method: str = "analytic"
+    dilate: bool = False
+    intrinsics: Intrinsics = field(default_factory=Intrinsics)
+    eps: float = DEFAULT_EPS
+    timings: dict[str, list[float]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    def plan_from(
+        self, cloud: np.ndarray, poses: np.ndarray, visited: list[int], n_iter: int
+    ) -> list[int]:
+        """Plan ``n_iter`` views on the hull of ``cloud`` (or its signature's).
+
+        Args:
+            cloud: (N, 3) float partial cloud, world units.
+            poses: (V, 4, 4) camera-to-world poses of the viewspace.
+            visited: views already captured (never chosen; what they see counts as covered).
+            n_iter: views to plan.
+
+        Returns:
+            The planned views in order.
+        """
+        cloud = np.asarray(_cloud_or_origin(cloud), dtype=np.float64)
+        t0 = time.perf_counter()
+        if self.sph:
+            if _has_spread(cloud):
+                cloud = sph_hull_points(cloud, self.lmax)
+            else:
+                self.notes.append(_NO_SPREAD + "; planned on the cloud itself")
+            _record(self.timings, "signature", time.perf_counter() - t0)
+
+        def run(points: np.ndarray) -> Plan:
+            return plan(
+                points,
+                poses[:, :3, 3],
+                n_iter=n_iter,
+                exclude=visited,
+                n_samp=self.n_samp,
+                rng=self.rng,
+                method=self.method,
+                intrinsics=self.intrinsics,
+                eps=self.eps,
+                poses=poses,
+                dilate=self.dilate,
+            )
+
+        try:
+            result = run(cloud)
+        except ValueError as err:
+            try:
+                convex_hull(cloud)
+            except ValueError:
+                # The hull fails before any random draw, so the retry sees the same generator.
+                self.notes.append(f"flat cloud thickened for the hull: {err}")
+                result = run(thicken(cloud))
+            else:
+                raise
+        t = result.timings
+        _record(self.timings, "hull", t["hull"] + t["sampling"])
+        _record(self.timings, "simulation", t["simulation"])
+        _record(self.timings, "set_cover", t["sets"] + t["greedy"])
+        return result.views
+
+    def _probe_cloud(self, state: EpisodeState) -> np.ndarray:
+        """The start view's cloud plus ``probe_points`` random points of each later view."""
+        view = state.model.views[state.viewspace]
+        parts = [view.view_points(state.order[0])]
+        for v in state.order[1:]:
+            pts = view.view_points(v)
+            keep = self.rng.choice(len(pts), min(self.probe_points, len(pts)), replace=False)
+            parts.append(pts[np.sort(keep)])
+        return np.concatenate(parts)
+
+    def __call__(self, state: EpisodeState) -> list[int]:
+        remaining = self.n_views - len(state.order)
+        if self.probes > 0 and len(state.order) == 1:
+            free = np.flatnonzero(~state.view_state)
+            k = min(self.probes, remaining, len(free))
+            return [int(v) for v in self.rng.choice(free, k, replace=False)]
+        poses = state.model.views[state.viewspace].poses
+        remaining = min(remaining, len(poses) - len(state.order))
+        return self.plan_from(self._probe_cloud(state), poses, list(state.order), remaining)
+
+
+@dataclass
+class HullSCOReplanPolicy(HullSCOPolicy):
+    """Convex-hull set cover rerun after every captured view on the whole accumulated cloud;
+    the first view of each plan is taken. (The greedy's first pick does not depend on how many
+    views it plans, so each plan is of one view.) ``probes`` is not used."""
+
+    def __call__(self, state: EpisodeState) -> int:
+        poses = state.model.views[state.viewspace].poses
+        return self.plan_from(state.cloud(), poses, list(state.order), 1)[0]

@@ -1,0 +1,102 @@
+"""A trained PCNBV / PCNBV-sph checkpoint as a view-selection policy."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from nbv.geometry.clouds import farthest_points
+from nbv.policies.episode import EpisodeState
+from nbv.policies.inputs import _cloud_or_origin, _record, _signature
+
+
+@dataclass
+class NetworkPolicy:
+    """A PCNBV network: the accumulated cloud (farthest point sampled to ``n_points``) or its
+    spherical signature (``input == "signature"``, degree ``lmax``) and the view state in, the
+    best unvisited view of its predicted gains out.
+
+    ``precision`` is the arithmetic of the forward pass (:data:`nbv.models.net.PRECISIONS`; ``"auto"``
+    is bfloat16 autocast where the CPU runs it natively). ``timings`` collects seconds per
+    decision: ``sampling`` (or ``signature``) and ``network``.
+    """
+
+    model: object  # nbv.models.net.PCNBV, kept untyped so that importing this module needs no torch
+    input: str = "points"
+    n_points: int = 512
+    lmax: int = 3
+    precision: str = "auto"
+    timings: dict[str, list[float]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    @classmethod
+    def from_checkpoint(
+        cls, path: str | Path, n_views: int | None = None, precision: str | None = None
+    ) -> NetworkPolicy:
+        """Load a training checkpoint (``best.pt``); its ``extra`` says the input kind, the
+        number of points and (unless ``precision`` is given) the precision it was trained with.
+
+        Raises:
+            nbv.models.net.CheckpointError: the file is missing or unusable (the message names it).
+        """
+        from nbv.models.net import for_inference, load_checkpoint
+
+        net, extra = load_checkpoint(path, n_views=n_views)
+        precision = precision or str(extra.get("precision", "fp32"))
+        return cls(
+            for_inference(net, precision),
+            input=str(extra.get("input", "points")),
+            n_points=int(extra.get("eval_points", 1024)),
+            lmax=int(extra.get("lmax", 3)),
+            precision=precision,
+        )
+
+    def fresh(self) -> NetworkPolicy:
+        """The same network with empty ``timings`` and ``notes`` (one per episode)."""
+        return NetworkPolicy(self.model, self.input, self.n_points, self.lmax, self.precision)
+
+    def features(self, cloud: np.ndarray) -> np.ndarray:
+        """The network input for a cloud: (n_points, 3) or the (4 (lmax+1)^2, 3) signature."""
+        cloud = _cloud_or_origin(cloud)
+        if self.input == "signature":
+            return _signature(cloud, self.lmax, self.notes)
+        return farthest_points(cloud, self.n_points)
+
+    def decide(
+        self, cloud: np.ndarray, view_state: np.ndarray, visited: np.ndarray | None = None
+    ) -> int:
+        """The best view of the network's prediction for ``cloud`` and ``view_state``.
+
+        Args:
+            cloud: (N, 3) float accumulated cloud, world units.
+            view_state: (V,) bool, the state the network is shown.
+            visited: (V,) bool, the views that may not be chosen; default ``view_state``. (The
+                disturbance checks show the network another state than the true one.)
+
+        Returns:
+            The index of the highest-scoring view not in ``visited``.
+        """
+        import torch
+
+        from nbv.models.net import autocast, flush_denormals, masked_argmax
+
+        t0 = time.perf_counter()
+        points = self.features(cloud)
+        t1 = time.perf_counter()
+        device = next(self.model.parameters()).device
+        with torch.no_grad(), flush_denormals(), autocast(self.precision, device):
+            x = torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32))[None]
+            s = torch.from_numpy(np.asarray(view_state, dtype=bool))[None]
+            scores = self.model(x.to(device), s.float().to(device)).cpu()
+            mask = s if visited is None else torch.from_numpy(np.asarray(visited, bool))[None]
+            choice = int(masked_argmax(scores, mask)[0])
+        t2 = time.perf_counter()
+        _record(self.timings, "signature" if self.input == "signature" else "sampling", t1 - t0)
+        _record(self.timings, "network", t2 - t1)
+        return choice
+
+    def __call__(self, state: EpisodeState) -> int:
+        return self.decide(state.cloud(), state.view_state)

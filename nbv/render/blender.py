@@ -1,0 +1,239 @@
+"""The Blender driver: a stream of meshes rendered by ``blender_scripts/render_depth.py`` in one subprocess."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from nbv.geometry.camera import Intrinsics, opencv_to_blender
+from nbv.render.job import DEVICES, RenderError, RenderJob, _check_mesh
+
+#: The Blender script, run as a subprocess (it imports bpy, never nbv).
+BLENDER_SCRIPT = Path(__file__).resolve().parents[2] / "blender_scripts" / "render_depth.py"
+
+
+_STDERR_TAIL_LINES = 20
+
+
+def _intrinsics_spec(intrinsics: Intrinsics) -> dict:
+    return {
+        "width": intrinsics.width,
+        "height": intrinsics.height,
+        "fx": float(intrinsics.fx),
+        "fy": float(intrinsics.fy),
+        "cx": float(intrinsics.cx),
+        "cy": float(intrinsics.cy),
+    }
+
+
+def _check_options(threads: int, device: str = "CPU", blender: str | None = None) -> None:
+    if not isinstance(threads, int | np.integer) or threads < 0:
+        raise ValueError(f"threads must be an integer >= 0 (0 = all cores), got {threads!r}")
+    if device not in DEVICES:
+        raise ValueError(f"device must be one of {DEVICES}, got {device!r}")
+    if blender is not None and shutil.which(blender) is None:
+        raise FileNotFoundError(f"Blender executable {blender!r} not found")
+
+
+def _blender_command(blender: str | None, job_file: Path) -> list[str]:
+    if blender is None:
+        return [sys.executable, str(BLENDER_SCRIPT), "--job", str(job_file)]
+    # --python-exit-code: a Python error in the script must not end as a clean exit.
+    return [blender, "-b", "--factory-startup", "--python-exit-code", "1", "-P",
+            str(BLENDER_SCRIPT), "--", "--job", str(job_file)]  # fmt: skip
+
+
+def _exit_reason(status: int) -> str:
+    if status < 0:
+        try:
+            return f"killed by signal {-status} ({signal.Signals(-status).name})"
+        except ValueError:
+            return f"killed by signal {-status}"
+    return f"exit status {status}"
+
+
+def _log_tail(log: Path, offset: int, lines: int = _STDERR_TAIL_LINES) -> str:
+    with open(log, "rb") as f:
+        f.seek(offset)
+        text = f.read().decode("utf-8", errors="replace")
+    return "\n".join(text.splitlines()[-lines:])
+
+
+@dataclass(frozen=True)
+class _Pending:
+    key: str
+    mesh: Path
+    poses: Path
+    out: Path
+
+    def entry(self) -> dict:
+        return {"key": self.key, "mesh": str(self.mesh), "poses": str(self.poses),
+                "out": str(self.out)}  # fmt: skip
+
+    def remove(self) -> None:
+        for path in (self.mesh, self.poses, self.out):
+            path.unlink(missing_ok=True)
+
+
+def _stage(job: RenderJob, index: int, run_dir: Path) -> _Pending:
+    """Check a job and write its mesh and Blender-convention poses into run_dir."""
+    if not isinstance(job.key, str) or not job.key.strip() or len(job.key.splitlines()) != 1:
+        raise ValueError(f"key must be a non-empty one-line string, got {job.key!r}")
+    vertices, faces, poses = (np.asarray(a) for a in (job.vertices, job.faces, job.poses))
+    _check_mesh(vertices, faces, poses)
+    if not (np.all(np.isfinite(vertices)) and np.all(np.isfinite(poses))):
+        raise ValueError("vertices and poses must be finite")
+    pending = _Pending(
+        job.key, run_dir / f"{index:06d}_mesh.npz", run_dir / f"{index:06d}_poses.npy",
+        run_dir / f"{index:06d}_depth.npy",
+    )  # fmt: skip
+    np.savez(pending.mesh, vertices=vertices.astype(np.float64), faces=faces.astype(np.int64))
+    np.save(pending.poses, opencv_to_blender(poses))
+    return pending
+
+
+def render_blender(
+    jobs: Iterable[RenderJob],
+    intrinsics: Intrinsics,
+    workdir: Path,
+    blender: str | None = None,
+    threads: int = 0,
+    device: str = "CPU",
+) -> Iterator[tuple[str, np.ndarray | RenderError]]:
+    """Render meshes with Blender Cycles in one subprocess, yielding each as soon as it is done.
+
+    All jobs are staged into a fresh folder under ``workdir`` first (meshes as .npz, poses
+    converted to Blender's camera convention), then ``blender_scripts/render_depth.py`` renders
+    them in order in one process. If that process dies before finishing, the mesh it was
+    rendering gets a :class:`RenderError` (exit status and the tail of Blender's output) and a new
+    process renders the rest. Blender's output goes to ``blender.log`` in that folder; the folder
+    is removed at the end unless something failed, when the log is kept and named in the errors.
+
+    Args:
+        jobs: meshes with keys and OpenCV camera-to-world poses; keys must be unique.
+        intrinsics: the camera, shared by every view.
+        workdir: folder for temporary files (created if missing).
+        blender: path of a Blender 4.x/5.x executable; None runs the script with this Python's
+            ``bpy`` module.
+        threads: CPU threads for Cycles; 0 = all cores.
+        device: "CPU", "GPU" (fail without one) or "AUTO" (GPU when present).
+
+    Yields:
+        ``(key, depth)`` with (V, H, W) float32 planar depth, ``inf`` for background, or
+        ``(key, RenderError)``, in job order (invalid jobs are reported first).
+
+    Raises:
+        ValueError: bad ``threads``/``device``; FileNotFoundError: ``blender`` not found.
+    """
+    _check_options(threads, device, blender)
+    if not BLENDER_SCRIPT.is_file():
+        raise FileNotFoundError(f"{BLENDER_SCRIPT} is missing: nbv must run from a checkout")
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    return _render_blender(jobs, intrinsics, workdir, blender, threads, device)
+
+
+def _render_blender(
+    jobs: Iterable[RenderJob],
+    intrinsics: Intrinsics,
+    workdir: Path,
+    blender: str | None,
+    threads: int,
+    device: str,
+) -> Iterator[tuple[str, np.ndarray | RenderError]]:
+    run_dir = Path(tempfile.mkdtemp(prefix="blender-", dir=workdir))
+    log = run_dir / "blender.log"
+    failed = False
+    process: subprocess.Popen | None = None
+    pending: list[_Pending] = []
+    try:
+        seen: set[str] = set()
+        for index, job in enumerate(jobs):
+            try:
+                if job.key in seen:
+                    raise ValueError("duplicate key")
+                pending.append(_stage(job, index, run_dir))
+                seen.add(job.key)
+            except (ValueError, TypeError, AttributeError) as exc:
+                key = getattr(job, "key", f"#{index}")
+                yield key, RenderError(f"{key!r}: {exc}")
+        spec = _intrinsics_spec(intrinsics) | {"threads": int(threads), "device": device}
+        run = 0
+        while pending:
+            job_file = run_dir / f"job_{run:03d}.json"
+            job_file.write_text(json.dumps(spec | {"jobs": [p.entry() for p in pending]}))
+            with open(log, "ab") as log_file:
+                log_file.write(f"=== run {run}: {len(pending)} meshes ===\n".encode())
+                offset = log_file.tell()
+                process = subprocess.Popen(
+                    _blender_command(blender, job_file),
+                    stdout=subprocess.PIPE,
+                    stderr=log_file,
+                    stdin=subprocess.DEVNULL,
+                    text=True,
+                    errors="replace",
+                )
+            fatal = None
+            assert process.stdout is not None
+            for line in process.stdout:
+                if line.startswith("NBV-FATAL "):
+                    fatal = line[len("NBV-FATAL ") :].strip()
+                    continue
+                if not line.startswith(("NBV-DONE ", "NBV-FAIL ")) or not pending:
+                    with open(log, "a") as log_file:
+                        log_file.write(line)
+                    continue
+                job = pending[0]
+                tag, rest = line.rstrip("\n").split(" ", 1)
+                if rest != job.key and not rest.startswith(job.key + " "):
+                    raise RenderError(f"Blender reported {rest!r} while {job.key!r} was expected")
+                if tag == "NBV-DONE":
+                    result: np.ndarray | RenderError = np.load(job.out)
+                else:
+                    failed = True
+                    result = RenderError(f"{job.key!r}: {rest[len(job.key) :].strip()}")
+                job.remove()
+                pending.pop(0)
+                yield job.key, result
+            status = process.wait()
+            process = None
+            if not pending:
+                break
+            failed = True
+            if fatal is not None:
+                for job in pending:
+                    job.remove()
+                    yield job.key, RenderError(f"{job.key!r}: Blender could not start: {fatal}")
+                pending.clear()
+                break
+            job = pending.pop(0)
+            job.remove()
+            yield (
+                job.key,
+                RenderError(
+                    f"{job.key!r}: Blender died ({_exit_reason(status)}) while rendering it; "
+                    f"log {log}, last lines:\n{_log_tail(log, offset)}"
+                ),
+            )
+            run += 1
+    finally:
+        if process is not None and process.poll() is None:
+            process.kill()
+            process.wait()
+        if failed:  # keep only the log
+            for path in run_dir.iterdir():
+                if path.is_dir():
+                    shutil.rmtree(path, ignore_errors=True)
+                elif path != log:
+                    path.unlink()
+        else:
+            shutil.rmtree(run_dir, ignore_errors=True)

@@ -1,0 +1,1 @@
+"""Helpers every layer may use: crash-safe writes, generators derived from names, bit counts."""
