@@ -31,8 +31,9 @@ eval: $(STAMP)
 	$(PY) -m nbv.eval $(ARGS)
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check nbv train blender_scripts tests
-	$(VENV)/bin/ruff format --check nbv train blender_scripts tests
+	$(VENV)/bin/ruff check nbv train blender_scripts tests scripts
+	$(VENV)/bin/ruff format --check nbv train blender_scripts tests scripts
+	$(VENV)/bin/lint-imports
 
 preview: $(STAMP)
 	$(PY) -m nbv.synthetic --preview outputs/synthetic_preview.png

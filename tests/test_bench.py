@@ -63,7 +63,9 @@ def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy():
     import torch
 
     from nbv.bench.network import network_episode, plain_decider
-    from nbv.models.net import PCNBV, PCNBVConfig, for_inference
+    from nbv.models.config import PCNBVConfig
+    from nbv.models.inference import for_inference
+    from nbv.models.pcnbv import PCNBV
     from nbv.policies.network import NetworkPolicy
 
     torch.manual_seed(0)

@@ -27,10 +27,13 @@ from nbv.eval.config import (
 from nbv.eval.disturb import auc_changes, permuted_state, random_ball
 from nbv.eval.evaluate import EvalDataError, evaluate, run
 from nbv.eval.prepare import prepare_meshes
-from nbv.eval.protocol import Context, episode_rng, make_policy
+from nbv.eval.protocol import episode_rng
 from nbv.eval.report import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
+from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import auc
+from nbv.policies.registry import METHODS as METHODS_BY_NAME
+from nbv.policies.registry import PLANNERS, MethodContext
 
 ROOT = Path(__file__).resolve().parents[1]
 STARTS = (1, 24)
@@ -355,7 +358,7 @@ def test_interrupted_evaluation_resumes_from_its_log(tiny, tmp_path):
 
 def test_hull_policies_get_the_dilation_setting():
     for dilate in (False, True):
-        ctx = Context({}, HullSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
-        for method in ("hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan"):
-            policy = make_policy(method, ctx, np.random.default_rng(0))
-            assert policy.dilate is dilate and policy.eps == 0.03, method
+        ctx = MethodContext({}, PlannerSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
+        for method in PLANNERS:
+            policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
+            assert policy.settings.dilate is dilate and policy.eps == 0.03, method

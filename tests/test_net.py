@@ -1,4 +1,4 @@
-"""Tests of nbv.models.net: the PCNBV network, masked_argmax and checkpoints.
+"""Tests of nbv.models: the PCNBV network, masked_argmax and checkpoints.
 
 Tiny configs keep everything fast on CPU; the default config is only built to check its sizes.
 """
@@ -12,23 +12,13 @@ import numpy as np
 import pytest
 import torch
 
-from nbv.models.net import (
-    PCNBV,
-    CheckpointError,
-    DenseEdgeConv,
-    PCNBVConfig,
-    autocast,
-    count_parameters,
-    flush_denormals,
-    for_inference,
-    knn_indices,
-    load_checkpoint,
-    masked_argmax,
-    max_over,
-    resolve_precision,
-    save_checkpoint,
-    smallest_indices,
-)
+from nbv.models.checkpoints import CheckpointError, load_checkpoint, save_checkpoint
+from nbv.models.config import PCNBVConfig
+from nbv.models.inference import for_inference, masked_argmax
+from nbv.models.layers import DenseEdgeConv, max_over
+from nbv.models.neighbours import knn_indices, smallest_indices
+from nbv.models.pcnbv import PCNBV, count_parameters
+from nbv.models.precision import autocast, flush_denormals, resolve_precision
 
 TINY = PCNBVConfig(
     n_views=7,

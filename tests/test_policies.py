@@ -15,6 +15,7 @@ from nbv.dataset.generate import Settings, generate
 from nbv.planning.hull import convex_hull
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.planner import plan_sph
+from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
@@ -51,7 +52,9 @@ def save_tiny_checkpoint(path: Path, input: str = "points", seed: int = 0) -> Pa
     eval_points)."""
     import torch
 
-    from nbv.models.net import PCNBV, PCNBVConfig, save_checkpoint
+    from nbv.models.checkpoints import save_checkpoint
+    from nbv.models.config import PCNBVConfig
+    from nbv.models.pcnbv import PCNBV
 
     torch.manual_seed(seed)
     net = PCNBV(PCNBVConfig(n_views=33, **TINY_NET)).eval()
@@ -81,14 +84,19 @@ def networks(tmp_path_factory):
 def all_policies(networks, seed: int = 0) -> dict:
     """One policy of every kind, seeded (the small camera of the dataset for the planners)."""
     rng = np.random.default_rng
-    hull = dict(intrinsics=SMALL_CAMERA, n_samp=2048)
+    hull = dict(intrinsics=SMALL_CAMERA, settings=PlannerSettings(n_samp=2048))
     return {
         "random": RandomPolicy(rng(seed)),
         "oracle": OraclePolicy(),
         "pcnbv": networks["points"].fresh(),
         "pcnbv_sph": networks["signature"].fresh(),
         "hull_sco": HullSCOPolicy(rng(seed), **hull),
-        "hull_sco_sph": HullSCOPolicy(rng(seed), sph=True, lmax=2, **hull),
+        "hull_sco_sph": HullSCOPolicy(
+            rng(seed),
+            sph=True,
+            intrinsics=SMALL_CAMERA,
+            settings=PlannerSettings(n_samp=2048, lmax=2),
+        ),
         "hull_sco_probes": HullSCOPolicy(rng(seed), probes=3, **hull),
         "hull_sco_replan": HullSCOReplanPolicy(rng(seed), **hull),
     }
@@ -137,7 +145,9 @@ def test_one_shot_planner_is_the_plan_of_the_start_view(model):
     plans = {}
     for dilate in (False, True):
         # eps about the small camera's pixel spacing: the dilation changes this plan.
-        kw = dict(n_samp=4096, intrinsics=SMALL_CAMERA, eps=0.02, dilate=dilate)
+        kw = dict(
+            settings=PlannerSettings(n_samp=4096, dilate=dilate), intrinsics=SMALL_CAMERA, eps=0.02
+        )
         episode = run_episode(model, "original", 10, HullSCOPolicy(np.random.default_rng(11), **kw))
         rng = np.random.default_rng(11)
         expected = sco_plan(
@@ -150,12 +160,15 @@ def test_one_shot_planner_is_the_plan_of_the_start_view(model):
 
 def test_sph_planner_plans_on_the_signature(model):
     view = model.views["permuted"]
-    policy = HullSCOPolicy(np.random.default_rng(2), sph=True, lmax=2, intrinsics=SMALL_CAMERA)
+    lmax2 = PlannerSettings(lmax=2)
+    policy = HullSCOPolicy(
+        np.random.default_rng(2), sph=True, settings=lmax2, intrinsics=SMALL_CAMERA
+    )
     episode = run_episode(model, "permuted", 1, policy)
     expected = plan_sph(
         view.view_points(1),
         view.poses[:, :3, 3],
-        lmax=2,
+        settings=lmax2,
         exclude=[1],
         rng=np.random.default_rng(2),
         intrinsics=SMALL_CAMERA,
@@ -167,7 +180,10 @@ def test_sph_planner_plans_on_the_signature(model):
 def test_probes_come_first_and_only_their_probe_points_are_used(model):
     view = model.views["original"]
     policy = HullSCOPolicy(
-        np.random.default_rng(3), probes=3, probe_points=20, intrinsics=SMALL_CAMERA
+        np.random.default_rng(3),
+        probes=3,
+        settings=PlannerSettings(probe_points=20),
+        intrinsics=SMALL_CAMERA,
     )
     episode = run_episode(model, "original", 15, policy)
     # The same draws by hand: three probe views, 20 points of each, then a 6-view plan.

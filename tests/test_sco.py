@@ -2,6 +2,7 @@
 view_sets, and whole plans (with and without the dilation). The visibility and the dilation have
 their own tests: test_visibility.py, test_dilation.py."""
 
+from dataclasses import replace
 from itertools import combinations
 
 import numpy as np
@@ -14,6 +15,7 @@ from nbv.geometry.viewspace import original_viewspace
 from nbv.planning.hull import convex_hull, sample_hull, sample_on_hull
 from nbv.planning.planner import plan, plan_sph, sph_hull_points
 from nbv.planning.set_cover import greedy_max_coverage, pack_sets
+from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets
 from nbv.utils.bits import popcount_rows
 
@@ -344,7 +346,7 @@ def test_plan_on_a_cube_is_greedy_and_deterministic():
     rng = np.random.default_rng(6)
     points = _cube_surface(3000, 0.25, rng)
     viewspace = original_viewspace()
-    result = plan(points, viewspace, exclude=(0,), n_samp=8192, rng=11)
+    result = plan(points, viewspace, exclude=(0,), rng=11, settings=PlannerSettings(n_samp=8192))
     assert len(result.views) == 9 and len(set(result.views)) == 9 and 0 not in result.views
     assert result.gains[0] > 0
     assert result.gains == sorted(result.gains, reverse=True)
@@ -369,7 +371,7 @@ def test_plan_on_a_cube_is_greedy_and_deterministic():
         closed[view] = True
     by_index = np.flatnonzero(~np.isin(np.arange(len(viewspace)), [0, *result.views[:zero]]))
     assert result.views[zero:] != by_index[: 9 - zero].tolist()
-    again = plan(points, viewspace, exclude=(0,), n_samp=8192, rng=11)
+    again = plan(points, viewspace, exclude=(0,), rng=11, settings=PlannerSettings(n_samp=8192))
     assert (again.views, again.gains) == (result.views, result.gains)
 
 
@@ -387,11 +389,12 @@ def test_plan_dilates_the_sets_only_when_asked():
     dilated = view_sets(samples, normals, poses, hull=hull, face_ids=faces, dilate=True)
     assert np.all(dilated >= visible) and (dilated & ~visible).sum() > 100
     for n_iter in (1, 2, 9):
-        kw = dict(n_iter=n_iter, exclude=(0,), n_samp=8192, rng=11, poses=poses)
-        plain = plan(points, viewspace, **kw)
-        explicit = plan(points, viewspace, dilate=False, **kw)
+        kw = dict(n_iter=n_iter, exclude=(0,), rng=11, poses=poses)
+        n8192 = PlannerSettings(n_samp=8192)
+        plain = plan(points, viewspace, settings=n8192, **kw)
+        explicit = plan(points, viewspace, settings=replace(n8192, dilate=False), **kw)
         assert (explicit.views, explicit.gains) == (plain.views, plain.gains)
-        wide = plan(points, viewspace, dilate=True, **kw)
+        wide = plan(points, viewspace, settings=replace(n8192, dilate=True), **kw)
         for result, sets in ((plain, visible), (wide, dilated)):
             assert len(set(result.views)) == n_iter and 0 not in result.views
             assert result.gains[0] > 0 and result.gains == sorted(result.gains, reverse=True)
@@ -401,7 +404,9 @@ def test_plan_dilates_the_sets_only_when_asked():
             assert wide.covered_fraction > plain.covered_fraction
         else:
             assert wide.covered_fraction == plain.covered_fraction == 1.0
-    sph = plan_sph(points, viewspace, exclude=(0,), n_samp=4096, rng=0, dilate=True)
+    sph = plan_sph(
+        points, viewspace, exclude=(0,), rng=0, settings=PlannerSettings(n_samp=4096, dilate=True)
+    )
     assert len(set(sph.views)) == 9 and 0 not in sph.views
 
 
@@ -409,13 +414,14 @@ def test_plan_accepts_precomputed_poses_and_rejects_bad_input():
     points = _cube_surface(500, 0.25, np.random.default_rng(7))
     viewspace = original_viewspace()
     poses = viewspace_poses(viewspace)
-    a = plan(points, viewspace, n_iter=3, n_samp=2048, rng=0)
-    b = plan(points, viewspace, n_iter=3, n_samp=2048, rng=0, poses=poses)
+    n2048 = PlannerSettings(n_samp=2048)
+    a = plan(points, viewspace, n_iter=3, rng=0, settings=n2048)
+    b = plan(points, viewspace, n_iter=3, rng=0, settings=n2048, poses=poses)
     assert (a.views, a.gains) == (b.views, b.gains)
     with pytest.raises(ValueError, match="no volume"):
         plan(points * [1.0, 0.0, 1.0], viewspace)
-    with pytest.raises(ValueError, match="method"):
-        plan(points, viewspace, method="blender")
+    with pytest.raises(ValueError, match="simulation"):
+        plan(points, viewspace, settings=PlannerSettings(simulation="blender"))
     with pytest.raises(ValueError, match="viewspace"):
         plan(points, viewspace[:, :2])
     with pytest.raises(ValueError, match="poses"):
@@ -430,8 +436,7 @@ def test_plan_raycast_runs_on_a_small_camera():
         points,
         original_viewspace(),
         exclude=(0,),
-        n_samp=2048,
-        method="raycast",
+        settings=PlannerSettings(n_samp=2048, simulation="raycast"),
         intrinsics=small,
         eps=0.03,
     )
@@ -449,7 +454,9 @@ def test_plan_sph_uses_the_signature_hull_at_the_centroid():
     # 64 points on the sphere: their hull holds most of the cloud's hull.
     ratio = ConvexHull(signature).volume / ConvexHull(points).volume
     assert 0.8 < ratio < 1.0
-    result = plan_sph(points, original_viewspace(), exclude=(0,), n_samp=4096, rng=0)
+    result = plan_sph(
+        points, original_viewspace(), exclude=(0,), rng=0, settings=PlannerSettings(n_samp=4096)
+    )
     assert len(set(result.views)) == 9 and 0 not in result.views
     assert result.gains == sorted(result.gains, reverse=True) and result.gains[0] > 0
     assert "signature" in result.timings

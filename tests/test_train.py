@@ -13,7 +13,7 @@ import pytest
 import torch
 from datagen import TINY_NET, make_train_dataset
 
-from nbv.models.net import CheckpointError, load_checkpoint
+from nbv.models.checkpoints import CheckpointError, load_checkpoint
 from train.config import TrainConfigError, TrainSettings
 from train.loop import run
 from train.metrics import best_view_hits, spearman

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from nbv.assets.categories import TRAIN_CATEGORIES
-from nbv.models.net import PRECISIONS
+from nbv.models.precision import PRECISIONS
 
 SCORES = ("coverage", "vig")
 INPUTS = ("points", "signature")

@@ -29,19 +29,15 @@ from tqdm import tqdm
 import nbv.dataset
 from nbv.dataset.reader import DatasetError
 from nbv.dataset.samples import SampleSet, load_samples
-from nbv.models.net import (
-    PCNBV,
-    CheckpointError,
-    PCNBVConfig,
-    autocast,
-    flush_denormals,
-    for_inference,
-    load_checkpoint,
-    save_checkpoint,
-)
+from nbv.models.checkpoints import CheckpointError, load_checkpoint, save_checkpoint
+from nbv.models.config import PCNBVConfig
+from nbv.models.inference import for_inference
+from nbv.models.pcnbv import PCNBV
+from nbv.models.precision import autocast, flush_denormals
 from nbv.policies.baselines import OraclePolicy, RandomPolicy
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
+from nbv.utils.atomic import atomic_path
 from train.config import TrainSettings
 from train.metrics import best_view_hits, spearman
 
@@ -168,8 +164,8 @@ def _plain_settings(settings: TrainSettings) -> dict:
 def run(settings: TrainSettings) -> dict:
     """Train one fold; returns the final metrics (see the module docstring).
 
-    Subnormal floats count as zero meanwhile (:func:`nbv.models.net.flush_denormals`): they appear as
-    the weights train and slow every CPU step down several times.
+    Subnormal floats count as zero meanwhile (:func:`nbv.models.precision.flush_denormals`): they
+    appear as the weights train and slow every CPU step down several times.
     """
     with flush_denormals():
         return _train(settings)
@@ -316,9 +312,7 @@ def _append_csv(path: Path, row: dict) -> None:
             rows = list(csv.DictReader(handle))
     rows = [r for r in rows if int(r["epoch"]) < row["epoch"]] + [row]
     columns = list(dict.fromkeys(k for r in rows for k in r))
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "w", newline="") as handle:
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
         writer = csv.DictWriter(handle, columns)
         writer.writeheader()
         writer.writerows(rows)
-    tmp.replace(path)

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.stats import spearmanr
 
+from nbv.utils.selection import masked_argmax
+
 
 def spearman(pred: np.ndarray, target: np.ndarray, view_state: np.ndarray) -> float:
     """Mean over samples of Spearman's rank correlation between predicted and true gains.
@@ -31,8 +33,7 @@ def best_view_hits(pred: np.ndarray, target: np.ndarray, view_state: np.ndarray)
 
     Ties in the target count as hits when the prediction picks any of the tied best views.
     """
-    masked_pred = np.where(view_state, -np.inf, pred)
     masked_target = np.where(view_state, -np.inf, target)
-    picked = masked_pred.argmax(axis=1)
+    picked = masked_argmax(pred, view_state)
     best = masked_target.max(axis=1)
     return float(np.mean(masked_target[np.arange(len(picked)), picked] >= best))

@@ -2,9 +2,10 @@
 
 An episode starts from one captured view and asks the network nine times for the next view; each
 decision farthest-point samples the accumulated cloud to the network's points and runs one
-forward pass. The project's path is :class:`nbv.policies.policies.NetworkPolicy` on the inference copy of
-the network (:func:`nbv.models.net.for_inference`: batch norm folded, bfloat16 where the CPU runs it
-natively, subnormals flushed); the reference is the plain float32 network called the same way.
+forward pass. The project's path is :class:`nbv.policies.network.NetworkPolicy` on the inference
+copy of the network (:func:`nbv.models.inference.for_inference`: batch norm folded, bfloat16
+where the CPU runs it natively, subnormals flushed); the reference is the plain float32 network
+called the same way.
 
 Untrained weights cost what trained ones cost only because subnormals are flushed in the
 project's path; pass a trained checkpoint (``python -m nbv.bench --checkpoint best.pt``) to time
@@ -49,7 +50,9 @@ def load_network(checkpoint: Path | None, n_views: int = 33):
     in eval mode."""
     import torch
 
-    from nbv.models.net import PCNBV, PCNBVConfig, load_checkpoint
+    from nbv.models.checkpoints import load_checkpoint
+    from nbv.models.config import PCNBVConfig
+    from nbv.models.pcnbv import PCNBV
 
     if checkpoint is not None:
         net, _ = load_checkpoint(checkpoint, n_views=n_views)
@@ -62,7 +65,7 @@ def plain_decider(net, n_points: int) -> Callable[[np.ndarray, np.ndarray], int]
     """The reference decision: farthest point sampling and a plain float32 forward pass."""
     import torch
 
-    from nbv.models.net import masked_argmax
+    from nbv.models.inference import masked_argmax
 
     def decide(cloud: np.ndarray, state: np.ndarray) -> int:
         x = torch.from_numpy(np.ascontiguousarray(farthest_points(cloud, n_points), np.float32))
@@ -82,7 +85,7 @@ def episode_seconds(
 ) -> dict[str, float]:
     """Best wall time of a whole episode over ``repeat`` runs, for the project's path
     (``"ours"``) and the plain float32 network (``"reference"``), in seconds."""
-    from nbv.models.net import for_inference
+    from nbv.models.inference import for_inference
     from nbv.policies.network import NetworkPolicy
 
     net = load_network(checkpoint, len(views))

@@ -38,6 +38,7 @@ from nbv.planning.hull import convex_hull, sample_hull
 from nbv.planning.planner import Plan
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.set_cover import greedy_max_coverage
+from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets
 from nbv.render.raycast import render_raycast
 
@@ -222,12 +223,16 @@ def run(
     )
 
     def plan(**kw) -> Plan:
-        return sco_plan(start_cloud, original_viewspace(), exclude=(1,), poses=scene["poses"], **kw)
+        settings = PlannerSettings(**kw)
+        viewspace = original_viewspace()
+        return sco_plan(
+            start_cloud, viewspace, exclude=(1,), settings=settings, poses=scene["poses"]
+        )
 
     row(
         "whole 9-view plan (hull+sim+sets+greedy), 2048-point start view",
         plan,
-        lambda: plan(method="raycast"),
+        lambda: plan(simulation="raycast"),
         0.050,
         "analytic vs ray-cast simulation",
     )

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from nbv.geometry.scores import coverage_from_bits, coverage_gains, vig_gains, vig_of_state
 
 
 @dataclass
@@ -57,3 +60,34 @@ class ModelData:
     gt_points: np.ndarray
     gt_hull_volume: float
     views: dict[str, ViewData] = field(default_factory=dict)
+
+
+#: The scores a view can be chosen by: coverage of the ground truth (PC-NBV) and VIG.
+SCORES = ("coverage", "vig")
+
+
+def score_functions(
+    model: ModelData, score: str, viewspace: str
+) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], float]]:
+    """``(gains, value)`` of ``score`` on a model's views of ``viewspace``.
+
+    ``gains(view_state)`` is the ``(V,)`` gain of every view (0 for visited ones) and
+    ``value(view_state)`` the score of the state, both from the stored ground truth: coverage
+    from the packed coverage bits, VIG from the views' hull vertices and the ground truth's
+    hull volume.
+
+    Raises:
+        ValueError: an unknown score (the message lists :data:`SCORES`).
+    """
+    view = model.views[viewspace]
+    if score == "coverage":
+        n_gt = len(model.gt_points)
+        return (
+            lambda s: coverage_gains(view.coverage, s, n_gt),
+            lambda s: coverage_from_bits(view.coverage, s, n_gt),
+        )
+    if score == "vig":
+        hulls = view.view_hulls()
+        volume = model.gt_hull_volume
+        return (lambda s: vig_gains(hulls, s, volume), lambda s: vig_of_state(hulls, s, volume))
+    raise ValueError(f"score={score!r}: must be one of {', '.join(SCORES)}")

@@ -47,14 +47,14 @@ import numpy as np
 from tqdm import tqdm
 
 from nbv.dataset.reader import Dataset, DatasetError, shard_files
-from nbv.dataset.records import ModelData
-from nbv.dataset.schema import fsync_replace, write_strings
+from nbv.dataset.records import SCORES, ModelData, score_functions
+from nbv.dataset.schema import write_strings
 from nbv.dataset.sources import stable_seed
 from nbv.geometry.clouds import farthest_points
-from nbv.geometry.scores import coverage_from_bits, coverage_gains, vig_gains, vig_of_state
 from nbv.geometry.sph import signature
+from nbv.utils.atomic import atomic_path
+from nbv.utils.selection import masked_argmax
 
-SCORES = ("coverage", "vig")
 SCHEMA_VERSION = 1
 
 
@@ -116,23 +116,9 @@ def walk(
         if random_step_prob > 0 and rng.random() < random_step_prob:
             nxt = int(rng.choice(np.flatnonzero(~state)))
         else:
-            nxt = int(np.argmax(np.where(state, -np.inf, g)))
+            nxt = masked_argmax(g, state)
         state[nxt] = True
     return out
-
-
-def _score_functions(model: ModelData, score: str, viewspace: str):
-    """(gains(state), value(state)) of one score for a model's views."""
-    view = model.views[viewspace]
-    if score == "coverage":
-        n_gt = len(model.gt_points)
-        return (
-            lambda s: coverage_gains(view.coverage, s, n_gt),
-            lambda s: coverage_from_bits(view.coverage, s, n_gt),
-        )
-    hulls = view.view_hulls()
-    volume = model.gt_hull_volume
-    return (lambda s: vig_gains(hulls, s, volume), lambda s: vig_of_state(hulls, s, volume))
 
 
 def model_samples(model: ModelData, score: str, settings: SampleSettings) -> dict[str, np.ndarray]:
@@ -143,7 +129,7 @@ def model_samples(model: ModelData, score: str, settings: SampleSettings) -> dic
     # A trajectory starts where the object is seen (a flat object seen edge-on shows nothing).
     seen = np.flatnonzero(np.diff(view.offsets) > 0)
     starts = rng.choice(seen, size=min(settings.trajectories, len(seen)), replace=False)
-    gains, value = _score_functions(model, score, settings.viewspace)
+    gains, value = score_functions(model, score, settings.viewspace)
     rows: dict[str, list] = {k: [] for k in ("points", "signature", "view_state", "target")}
     rows.update(value=[], trajectory=[], step=[])
     for t, start in enumerate(starts):
@@ -222,28 +208,27 @@ def write_samples(
                 a["model"] = np.full(len(a["step"]), index, dtype=np.int32)
                 collected[score].append(a)
     out = samples_path(shard_file)
-    tmp = out.with_name(out.name + ".tmp")
-    with h5py.File(tmp, "w") as handle:
-        attrs = asdict(settings)
-        attrs["scores"] = list(settings.scores)
-        handle.attrs.update(attrs)
-        handle.attrs.update(
-            schema_version=SCHEMA_VERSION,
-            dataset=shard_file.name,
-            n_views=len(dataset.viewspaces[settings.viewspace]),
-        )
-        write_strings(handle, "models/key", keys)
-        write_strings(handle, "models/category", [dataset.index[k][1] for k in keys])
-        write_strings(handle, "models/split", [dataset.index[k][2] for k in keys])
-        write_strings(handle, "skipped", [list(s) for s in skipped], columns=3)
-        for score, parts in collected.items():
-            group = handle.create_group(score)
-            if not parts:
-                continue
-            for name in parts[0]:
-                data = np.concatenate([p[name] for p in parts])
-                group.create_dataset(name, data=data, compression="gzip", shuffle=True)
-    fsync_replace(tmp, out)
+    with atomic_path(out) as tmp:
+        with h5py.File(tmp, "w") as handle:
+            attrs = asdict(settings)
+            attrs["scores"] = list(settings.scores)
+            handle.attrs.update(attrs)
+            handle.attrs.update(
+                schema_version=SCHEMA_VERSION,
+                dataset=shard_file.name,
+                n_views=len(dataset.viewspaces[settings.viewspace]),
+            )
+            write_strings(handle, "models/key", keys)
+            write_strings(handle, "models/category", [dataset.index[k][1] for k in keys])
+            write_strings(handle, "models/split", [dataset.index[k][2] for k in keys])
+            write_strings(handle, "skipped", [list(s) for s in skipped], columns=3)
+            for score, parts in collected.items():
+                group = handle.create_group(score)
+                if not parts:
+                    continue
+                for name in parts[0]:
+                    data = np.concatenate([p[name] for p in parts])
+                    group.create_dataset(name, data=data, compression="gzip", shuffle=True)
     return out, skipped
 
 

@@ -25,13 +25,13 @@ A model is therefore complete or absent whatever moment the process is killed.""
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import h5py
 import numpy as np
 
 from nbv.dataset.records import ModelData, ViewData
+from nbv.utils.atomic import atomic_path
 
 SCHEMA_VERSION = 1
 
@@ -44,13 +44,6 @@ _COMPRESSION = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
 
 
 _STR = h5py.string_dtype()
-
-
-def fsync_replace(tmp: Path, final: Path) -> None:
-    """Flush ``tmp`` to disk and rename it to ``final`` atomically."""
-    with open(tmp, "rb") as handle:
-        os.fsync(handle.fileno())
-    os.replace(tmp, final)
 
 
 def write_root(handle: h5py.File, root_attrs: dict, viewspaces: dict[str, np.ndarray]) -> None:
@@ -125,11 +118,9 @@ def write_part(
     path: Path, root_attrs: dict, viewspaces: dict[str, np.ndarray], model: ModelData
 ) -> None:
     """Write a one-model part file atomically (temporary name, fsync, rename)."""
-    tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as handle:
+    with atomic_path(path) as tmp, h5py.File(tmp, "w") as handle:
         write_root(handle, root_attrs, viewspaces)
         write_model(handle.create_group(f"models/{model.key}"), model)
-    fsync_replace(tmp, path)
 
 
 def write_strings(handle: h5py.Group, name: str, values: list, columns: int | None = None) -> None:
@@ -157,19 +148,18 @@ def assemble_shard(
             previous version of ``path`` itself.
         failures: (key, reason) of the models that could not be made.
     """
-    tmp = path.with_name(path.name + ".tmp")
-    splits: dict[str, list[str]] = {}
-    with h5py.File(tmp, "w") as out:
-        write_root(out, root_attrs, viewspaces)
-        models = out.create_group("models")
-        for file, key in sources:
-            with h5py.File(file, "r") as src:
-                src.copy(src[f"models/{key}"], models, name=key)
-            splits.setdefault(str(models[key].attrs["split"]), []).append(key)
-        for split, keys in splits.items():
-            write_strings(out, f"splits/{split}", keys)
-        write_strings(out, "failures", [[key, reason] for key, reason in failures], columns=2)
-    fsync_replace(tmp, path)
+    with atomic_path(path) as tmp:
+        splits: dict[str, list[str]] = {}
+        with h5py.File(tmp, "w") as out:
+            write_root(out, root_attrs, viewspaces)
+            models = out.create_group("models")
+            for file, key in sources:
+                with h5py.File(file, "r") as src:
+                    src.copy(src[f"models/{key}"], models, name=key)
+                splits.setdefault(str(models[key].attrs["split"]), []).append(key)
+            for split, keys in splits.items():
+                write_strings(out, f"splits/{split}", keys)
+            write_strings(out, "failures", [[key, reason] for key, reason in failures], columns=2)
 
 
 def config_json(settings: dict) -> str:

@@ -22,13 +22,7 @@ import numpy as np
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull import HullSCOPolicy
 from nbv.policies.network import NetworkPolicy
-
-#: check -> the methods it applies to.
-CHECK_METHODS = {
-    "random_cloud": ("pcnbv", "pcnbv_sph"),
-    "permuted_state": ("pcnbv", "pcnbv_sph"),
-    "random_hull": ("hull_sco",),
-}
+from nbv.policies.registry import CHECKS
 
 
 def random_ball(n: int, radius: float, rng: np.random.Generator) -> np.ndarray:
@@ -108,7 +102,7 @@ def disturbed(check: str, policy, rng: np.random.Generator, radius: float = 0.5)
         return PermutedStateNetwork(policy, rng)
     if check == "random_hull":
         return RandomHullPlanner(policy, rng, radius)
-    raise ValueError(f"unknown check {check!r}; allowed: {', '.join(CHECK_METHODS)}")
+    raise ValueError(f"unknown check {check!r}; allowed: {', '.join(CHECKS)}")
 
 
 def auc_changes(records: list) -> list[dict]:

@@ -25,6 +25,7 @@ from pathlib import Path
 
 from nbv.eval.config import EvalSettings
 from nbv.eval.protocol import EpisodeRecord
+from nbv.utils.atomic import append_durably
 
 LOG_NAME = "episodes.jsonl"
 #: Settings that do not change any episode.
@@ -118,10 +119,7 @@ class EpisodeLog:
 
     def _write_lines(self, entries: list[dict]) -> None:
         text = "".join(json.dumps(_plain(e), allow_nan=True) + "\n" for e in entries)
-        with open(self.path, "a") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
+        append_durably(self.path, text)
 
     def append(self, dataset: str, key: str, records: list[EpisodeRecord]) -> None:
         """Record a finished model: its episodes, then its ``done`` line, synced to disk."""

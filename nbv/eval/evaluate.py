@@ -11,7 +11,7 @@ so an interrupted evaluation resumes where it stopped. :func:`run` also writes t
 
 from __future__ import annotations
 
-import sys
+import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,12 +19,15 @@ from pathlib import Path
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
 from nbv.dataset.reader import Dataset
-from nbv.eval.config import NETWORK_INPUTS, EvalSettings
-from nbv.eval.disturb import CHECK_METHODS, disturbed
+from nbv.eval.config import EvalSettings
+from nbv.eval.disturb import disturbed
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.prepare import prepare_meshes
-from nbv.eval.protocol import Context, EpisodeRecord, episode_rng, make_policy, run_record
+from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext, check_methods
+
+log = logging.getLogger(__name__)
 
 
 class EvalDataError(ValueError):
@@ -143,7 +146,7 @@ def load_networks(
     settings: EvalSettings, n_views: int
 ) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
     """The selected network methods' checkpoints: (method -> policy, method -> skip reason)."""
-    from nbv.models.net import CheckpointError
+    from nbv.models.checkpoints import CheckpointError
 
     networks, skipped = {}, {}
     for method, needed in NETWORK_INPUTS.items():
@@ -174,7 +177,7 @@ def _jobs(settings: EvalSettings, runnable: list[str]) -> list[tuple[str, str | 
         for check in settings.checks:
             jobs += [
                 (m, check, vs, start)
-                for m in CHECK_METHODS[check]
+                for m in check_methods(check)
                 if m in runnable
                 for start in settings.check_start_views
             ]
@@ -189,7 +192,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     n_views = len(opened[0][1].viewspaces[settings.viewspaces[0]])
     networks, skipped = load_networks(settings, n_views)
     for method, reason in skipped.items():
-        print(f"nbv.eval: skipping {method}: {reason}", file=sys.stderr)
+        log.warning("skipping %s: %s", method, reason)
     if settings.threads:
         import torch
 
@@ -201,9 +204,9 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         [Path(settings.checkpoints[m]) for m in runnable if m in networks],
         [info.path for info, _ in opened],
     )
-    log = EpisodeLog(settings.out_dir / LOG_NAME, ident)
-    if log.done:
-        print(f"nbv.eval: resuming: {len(log.done)} models done in {log.path}", file=sys.stderr)
+    episodes = EpisodeLog(settings.out_dir / LOG_NAME, ident)
+    if episodes.done:
+        log.info("resuming: %d models done in %s", len(episodes.done), episodes.path)
     total = sum(len(info.keys) for info, _ in opened) * len(jobs)
     records: list[EpisodeRecord] = []
     resumed = 0
@@ -211,17 +214,17 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     t0 = time.perf_counter()
     for info, ds in opened:
         eps = float(ds.attrs["eps"])
-        ctx = Context(networks, settings.hull, ds.intrinsics, eps, settings.n_views)
+        ctx = MethodContext(networks, settings.hull, ds.intrinsics, eps, settings.n_views)
         for key in info.keys:
             model = ds.model(key, viewspaces=settings.viewspaces)
             if not model.gt_hull_volume > 0:
                 info.flat.append(key)
-            done = log.done.get((info.name, key))
+            done = episodes.done.get((info.name, key))
             if done is None:
                 done = []
                 for method, check, vs, start in jobs:
                     rng = episode_rng(settings.seed, method, check or "", key, vs, start)
-                    policy = make_policy(method, ctx, rng)
+                    policy = METHODS[method].build(ctx, rng)
                     if check is not None:
                         policy = disturbed(check, policy, rng, settings.disturb_radius)
                     done.append(
@@ -230,7 +233,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
                         )
                     )
                     bar.update()
-                log.append(info.name, key, done)
+                episodes.append(info.name, key, done)
             else:
                 bar.update(len(jobs))
                 resumed += len(done)

@@ -20,18 +20,8 @@ import numpy as np  # noqa: E402
 
 from nbv.eval.disturb import auc_changes  # noqa: E402
 from nbv.eval.report import groups, method_rank, order_methods  # noqa: E402
+from nbv.policies.registry import METHODS, ORACLE, PLANNERS  # noqa: E402
 
-#: One colour and line style per method, the same in every figure.
-STYLE = {
-    "random": ("#7f7f7f", ":"),
-    "oracle": ("#000000", "--"),
-    "pcnbv": ("#1f77b4", "-"),
-    "pcnbv_sph": ("#17becf", "-"),
-    "hull_sco": ("#d62728", "-"),
-    "hull_sco_sph": ("#ff7f0e", "-"),
-    "hull_sco_probes": ("#9467bd", "-."),
-    "hull_sco_replan": ("#2ca02c", "-."),
-}
 CHECK_LABELS = {
     "random_cloud": "random cloud",
     "permuted_state": "permuted view state",
@@ -40,7 +30,8 @@ CHECK_LABELS = {
 
 
 def _style(method: str) -> tuple[str, str]:
-    return STYLE.get(method, ("#8c564b", "-"))
+    """The method's colour and line style (the registry's; the same in every figure)."""
+    return METHODS[method].style if method in METHODS else ("#8c564b", "-")
 
 
 def curves_figure(evaluation, what: str, path: Path) -> None:
@@ -118,7 +109,7 @@ def disturbance_figure(evaluation, path: Path) -> bool:
 
 def _example(evaluation):
     """The episode drawn in reconstruction.png: the first convex-hull (else any) episode."""
-    for method in ("hull_sco", "hull_sco_replan", "hull_sco_sph", "hull_sco_probes", "oracle"):
+    for method in (*PLANNERS, ORACLE.name):
         for r in evaluation.records:
             if r.method == method and r.check is None:
                 return r

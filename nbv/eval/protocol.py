@@ -1,4 +1,4 @@
-"""The evaluation protocol: which policy a method name means, seeds, and one episode's record.
+"""The evaluation protocol: seeds and one episode's record.
 
 An episode starts from a start view and lets a method pick views until ``n_views`` are captured
 (:func:`nbv.policies.episode.run_episode`); coverage and VIG after each view come from the model's
@@ -9,18 +9,13 @@ start view, so a result does not depend on which other episodes ran.
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from nbv.dataset.records import ModelData
-from nbv.eval.config import HullSettings
-from nbv.geometry.camera import Intrinsics
-from nbv.policies.baselines import OraclePolicy, RandomPolicy
 from nbv.policies.episode import run_episode
-from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
-from nbv.policies.network import NetworkPolicy
+from nbv.utils.seeding import named_rng
 
 
 @dataclass
@@ -75,59 +70,9 @@ class EpisodeRecord:
 
 def episode_rng(seed: int, *names: str | int) -> np.random.Generator:
     """A generator seeded by ``seed`` and names (strings hashed with CRC-32, ints as they are)."""
-    words = [int(seed)] + [zlib.crc32(n.encode()) if isinstance(n, str) else int(n) for n in names]
-    return np.random.default_rng(words)
+    return named_rng(seed, *names)
 
 
-@dataclass
-class Context:
-    """What the policies of one dataset need besides a generator.
-
-    Attributes:
-        networks: method name -> a loaded :class:`NetworkPolicy` (the methods not skipped).
-        hull: the convex-hull settings.
-        intrinsics: the dataset's camera.
-        eps: the dataset's coverage distance (the hull planner's capture distance: of the
-            raycast simulation, and of the analytic one's dilation with ``hull.dilate``).
-        n_views: views per episode.
-    """
-
-    networks: dict[str, NetworkPolicy]
-    hull: HullSettings
-    intrinsics: Intrinsics
-    eps: float
-    n_views: int
-
-
-def make_policy(method: str, ctx: Context, rng: np.random.Generator):
-    """A fresh policy for one episode of ``method`` (its ``timings`` start empty)."""
-    if method == "random":
-        return RandomPolicy(rng)
-    if method == "oracle":
-        return OraclePolicy("coverage")
-    if method in ("pcnbv", "pcnbv_sph"):
-        return ctx.networks[method].fresh()
-    hull = ctx.hull
-    common = dict(
-        rng=rng,
-        lmax=hull.lmax,
-        n_views=ctx.n_views,
-        n_samp=hull.n_samp,
-        method=hull.simulation,
-        dilate=hull.dilate,
-        intrinsics=ctx.intrinsics,
-        eps=ctx.eps,
-        probe_points=hull.probe_points,
-    )
-    if method == "hull_sco":
-        return HullSCOPolicy(**common)
-    if method == "hull_sco_sph":
-        return HullSCOPolicy(sph=True, **common)
-    if method == "hull_sco_probes":
-        return HullSCOPolicy(probes=hull.probes, **common)
-    if method == "hull_sco_replan":
-        return HullSCOReplanPolicy(**common)
-    raise ValueError(f"unknown method {method!r}")
 
 
 def episode_timings(policy, decision_times: list[float]) -> dict[str, float]:

@@ -14,28 +14,28 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
 from collections import defaultdict
 from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
-from nbv.eval.config import METHODS
 from nbv.eval.disturb import auc_changes
 from nbv.eval.timing import COLUMNS, PAPER_TIMES, paper_ratios, timing_table
+from nbv.policies.registry import (
+    HULL_SCO,
+    HULL_SCO_REPLAN,
+    METHODS,
+    PCNBV,
+    PCNBV_SPH,
+    RANDOM,
+)
+from nbv.utils.atomic import write_text
 
 #: Paper-claim thresholds (stated in the report).
 CLOSE_AUC = 0.02
 DEGRADE_FRACTION = 0.5
 HOLD_FRACTION = 0.8
-
-
-def _write(path: Path, text: str) -> None:
-    """Write a file whole or not at all (a temporary name, then a rename)."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
 
 
 def _jsonable(value):
@@ -84,8 +84,9 @@ def groups(records: list, check: bool = False) -> dict[tuple, dict]:
 
 
 def method_rank(method: str) -> int:
-    """Position of a method in report order (``METHODS``; unknown names last)."""
-    return METHODS.index(method) if method in METHODS else len(METHODS)
+    """Position of a method in report order (the registry's; unknown names last)."""
+    order = list(METHODS)
+    return order.index(method) if method in order else len(order)
 
 
 def order_methods(methods) -> list[str]:
@@ -112,7 +113,7 @@ def write_json(evaluation, path: Path) -> None:
         "resumed_episodes": evaluation.resumed,
         "episodes": [_jsonable(r.to_json()) for r in evaluation.records],
     }
-    _write(path, json.dumps(data, indent=1, allow_nan=False))
+    write_text(path, json.dumps(data, indent=1, allow_nan=False))
 
 
 def write_csv(evaluation, path: Path) -> None:
@@ -135,7 +136,7 @@ def write_csv(evaluation, path: Path) -> None:
         row += ["" if not np.isfinite(v) else f"{v:.6f}" for v in s["vig"]]
         row += [f"{s['total']:.6f}", f"{s['online']:.6f}"]
         writer.writerow(row)
-    _write(path, handle.getvalue())
+    write_text(path, handle.getvalue())
 
 
 def _curve_tables(g: dict, datasets, viewspaces, n_views: int, what: str) -> list[str]:
@@ -207,11 +208,11 @@ def _dataset_claims(d: str, g: dict, times: dict, changes: list[dict]) -> list[s
         return s["auc"] if s else float("nan")
 
     def gain(vs: str, m: str) -> float:
-        return auc(vs, m) - auc(vs, "random")
+        return auc(vs, m) - auc(vs, RANDOM.name)
 
     lines = []
-    rnd = auc("original", "random")
-    beat = [m for m in ("pcnbv", "pcnbv_sph", "hull_sco") if (d, "original", m, None) in g]
+    rnd = auc("original", RANDOM.name)
+    beat = [m for m in (PCNBV.name, PCNBV_SPH.name, HULL_SCO.name) if (d, "original", m, None) in g]
     if beat and np.isfinite(rnd):
         ok = all(auc("original", m) > rnd for m in beat)
         nums = ", ".join(f"{m} {_f(auc('original', m))}" for m in beat)
@@ -222,14 +223,14 @@ def _dataset_claims(d: str, g: dict, times: dict, changes: list[dict]) -> list[s
     else:
         lines.append(f"1. *Networks and convex-hull planner beat random*: {_verdict(None)}.")
 
-    nets = [m for m in ("pcnbv", "pcnbv_sph") if (d, "permuted", m, None) in g]
-    needed = [(d, vs, m, None) for vs in ("original", "permuted") for m in ("hull_sco", "random")]
+    nets = [m for m in (PCNBV.name, PCNBV_SPH.name) if (d, "permuted", m, None) in g]
+    needed = [(d, vs, m, None) for vs in ("original", "permuted") for m in (HULL_SCO.name, RANDOM.name)]
     if nets and all(k in g for k in needed):
         net_ok = all(gain("permuted", m) < DEGRADE_FRACTION * gain("original", m) for m in nets)
-        hull_ok = gain("permuted", "hull_sco") >= HOLD_FRACTION * gain("original", "hull_sco")
+        hull_ok = gain("permuted", HULL_SCO.name) >= HOLD_FRACTION * gain("original", HULL_SCO.name)
         nums = "; ".join(
             f"{m} {_f(gain('original', m))} -> {_f(gain('permuted', m))}"
-            for m in [*nets, "hull_sco"]
+            for m in [*nets, HULL_SCO.name]
         )
         lines.append(
             "2. *On the permuted viewspace the networks degrade while the convex-hull planner "
@@ -241,13 +242,13 @@ def _dataset_claims(d: str, g: dict, times: dict, changes: list[dict]) -> list[s
     else:
         lines.append(f"2. *Permuted viewspace*: {_verdict(None)}.")
 
-    if (d, "original", "pcnbv", None) in g and (d, "original", "pcnbv_sph", None) in g:
-        diff = auc("original", "pcnbv_sph") - auc("original", "pcnbv")
-        t_p, t_s = times["pcnbv"]["total"], times["pcnbv_sph"]["total"]
+    if (d, "original", PCNBV.name, None) in g and (d, "original", PCNBV_SPH.name, None) in g:
+        diff = auc("original", PCNBV_SPH.name) - auc("original", PCNBV.name)
+        t_p, t_s = times[PCNBV.name]["total"], times[PCNBV_SPH.name]["total"]
         close, faster = abs(diff) <= CLOSE_AUC, t_s < t_p
         lines.append(
             f"3. *PCNBV-sph is close to PCNBV in AUC and faster*: AUC "
-            f"{_f(auc('original', 'pcnbv_sph'))} vs {_f(auc('original', 'pcnbv'))} "
+            f"{_f(auc('original', PCNBV_SPH.name))} vs {_f(auc('original', PCNBV.name))} "
             f"(difference {diff:+.3f}; close = within {CLOSE_AUC}), {t_s:.3f} s vs {t_p:.3f} s "
             f"per reconstruction (all runs): {_verdict(close and faster)} (close: "
             f"{_yes(close)}; faster: {_yes(faster)})."
@@ -256,7 +257,7 @@ def _dataset_claims(d: str, g: dict, times: dict, changes: list[dict]) -> list[s
         lines.append(f"3. *PCNBV-sph close to PCNBV and faster*: {_verdict(None)}.")
 
     parts, oks = [], []
-    for m in ("pcnbv", "pcnbv_sph"):
+    for m in (PCNBV.name, PCNBV_SPH.name):
         c = {
             row["check"]: row["change"]
             for row in changes
@@ -358,12 +359,12 @@ def report_markdown(evaluation) -> str:
     lines += ["", "## AUC per category", ""]
     lines += _category_tables(records, datasets, viewspaces)
 
-    if {"hull_sco", "hull_sco_replan"} <= set(methods):
+    if {HULL_SCO.name, HULL_SCO_REPLAN.name} <= set(methods):
         lines += ["", "## Replanning after every view vs one-shot convex-hull set cover", ""]
         rows = []
         for d in datasets:
             for vs in viewspaces:
-                mean, se, n = _paired(records, "hull_sco", "hull_sco_replan", d, vs)
+                mean, se, n = _paired(records, HULL_SCO.name, HULL_SCO_REPLAN.name, d, vs)
                 if n:
                     better = "replan better" if mean > 0 else "one-shot better or equal"
                     rows.append([d, vs, str(n), f"{mean:+.4f} ± {_f(se, 4)}", better])
@@ -444,4 +445,4 @@ def write_outputs(evaluation, report_only: bool = False) -> None:
     if not report_only:
         write_json(evaluation, out / "results.json")
         write_csv(evaluation, out / "summary.csv")
-    _write(out / "report.md", report_markdown(evaluation))
+    write_text(out / "report.md", report_markdown(evaluation))

@@ -1,0 +1,21 @@
+"""The networks that pick the next best view, and their checkpoints (the only layer with torch).
+
+Modules, each importing only the ones above it:
+
+- :mod:`nbv.models.precision`: :data:`PRECISIONS`, :func:`resolve_precision`, :func:`autocast`
+  (bfloat16 where the hardware runs it), :func:`flush_denormals`.
+- :mod:`nbv.models.neighbours`: k-nearest-neighbour search in feature space
+  (:func:`knn_indices`), a fast CPU top-k (:func:`smallest_indices`), :func:`gather_neighbours`.
+- :mod:`nbv.models.config`: :class:`PCNBVConfig`, the sizes of a network (no torch).
+- :mod:`nbv.models.layers`: 1x1 convs, :func:`max_over`, :class:`DenseEdgeConv`,
+  :class:`FeatureExtractor`, :class:`SelfAttention`.
+- :mod:`nbv.models.pcnbv`: :class:`PCNBV`, the PC-NBV network (also PCNBV-sph), and
+  :func:`count_parameters`.
+- :mod:`nbv.models.inference`: :func:`for_inference` (batch norm folded, bfloat16 weights) and
+  :func:`masked_argmax`, the best unvisited view.
+- :mod:`nbv.models.checkpoints`: :func:`save_checkpoint`, :func:`load_checkpoint`,
+  :class:`CheckpointError`.
+
+Nothing is re-exported here: import from the module itself, so that importing the package
+costs nothing and code that avoids torch can still name it.
+"""

@@ -10,9 +10,10 @@ from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.sph import signature_with_centroid
-from nbv.planning.hull import DEFAULT_N_SAMP, convex_hull, sample_on_hull
+from nbv.planning.hull import convex_hull, sample_on_hull
 from nbv.planning.set_cover import DEFAULT_N_ITER, _as_exclude, greedy_packed, pack_sets
-from nbv.planning.view_sets import METHODS, view_sets
+from nbv.planning.settings import PlannerSettings
+from nbv.planning.view_sets import view_sets
 from nbv.planning.visibility import _as_poses
 
 
@@ -48,30 +49,36 @@ def _plan_on_cloud(
     viewspace: np.ndarray,
     n_iter: int,
     exclude: Iterable[int],
-    n_samp: int,
     rng: np.random.Generator | int,
-    method: str,
+    settings: PlannerSettings,
     intrinsics: Intrinsics,
     eps: float,
     poses: np.ndarray | None,
     timings: dict[str, float],
-    dilate: bool = False,
 ) -> Plan:
     """Algorithms 2 and 3 on the hull of ``points``; adds its stage times to ``timings``."""
-    if method not in METHODS:
-        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     viewspace = _as_viewspace(viewspace)
     excluded = _as_exclude(exclude, len(viewspace))
     clock = time.perf_counter
     t0 = clock()
     hull = convex_hull(points)
     t1 = clock()
-    samples, normals, face_ids = sample_on_hull(hull, n_samp, rng)
+    samples, normals, face_ids = sample_on_hull(hull, settings.n_samp, rng)
     t2 = clock()
     poses = viewspace_poses(viewspace) if poses is None else _as_poses(poses)
     if len(poses) != len(viewspace):
         raise ValueError(f"poses has {len(poses)} cameras, the viewspace {len(viewspace)}")
-    sets = view_sets(samples, normals, poses, intrinsics, method, eps, hull, face_ids, dilate)
+    sets = view_sets(
+        samples,
+        normals,
+        poses,
+        intrinsics,
+        settings.simulation,
+        eps,
+        hull,
+        face_ids,
+        settings.dilate,
+    )
     t3 = clock()
     rows = pack_sets(sets)
     t4 = clock()
@@ -98,13 +105,11 @@ def plan(
     viewspace: np.ndarray,
     n_iter: int = DEFAULT_N_ITER,
     exclude: Iterable[int] = (),
-    n_samp: int = DEFAULT_N_SAMP,
     rng: np.random.Generator | int = 0,
-    method: str = "analytic",
+    settings: PlannerSettings = PlannerSettings(),  # noqa: B008 - frozen dataclass
     intrinsics: Intrinsics = Intrinsics(),  # noqa: B008 - frozen dataclass, immutable default
     eps: float = DEFAULT_EPS,
     poses: np.ndarray | None = None,
-    dilate: bool = False,
 ) -> Plan:
     """Convex-hull set-cover plan from a partial cloud (the paper's Algorithms 2 and 3).
 
@@ -116,19 +121,19 @@ def plan(
             :func:`greedy_max_coverage` with ``positions=viewspace``).
         exclude: indices of the views already visited (the start view): never chosen, and the
             hull samples they capture count as covered before the first pick.
-        n_samp: number of hull samples.
         rng: numpy Generator or integer seed (only the sampling is random).
-        method: view simulation, ``"analytic"`` or ``"raycast"`` (see :func:`view_sets`).
+        settings: the planner's settings: ``n_samp`` hull samples, the view ``simulation``
+            (``"analytic"`` or ``"raycast"``, see :func:`nbv.planning.view_sets.view_sets`) and
+            ``dilate``: with ``"analytic"``, dilate the visible sets by ``eps``
+            (:mod:`nbv.planning.dilation`), so that the samples within ``eps`` of a pixel's point
+            just behind the silhouette or just outside the image count too, as they do for
+            ``"raycast"``. Closer to ``"raycast"`` but about 4x slower, far more on hulls of
+            many small triangles (measured in the module docstring). Off by default.
         intrinsics: the camera.
         eps: capture distance, world units: of ``"raycast"``, and of ``"analytic"`` with
             ``dilate`` (see :func:`view_sets`).
         poses: ``(V, 4, 4)`` :func:`nbv.geometry.camera.viewspace_poses` of ``viewspace``, when the
             caller has them already (they are the same for every plan on one viewspace).
-        dilate: with ``"analytic"``, dilate the visible sets by ``eps`` (:mod:`nbv.planning.dilation`):
-            the samples within ``eps`` of a pixel's point just behind the silhouette or just
-            outside the image count too, as they do for ``"raycast"``. Closer to ``"raycast"``
-            but about 4x slower, far more on hulls of many small triangles (measured in the
-            module docstring). Off by default. ``"raycast"`` ignores it.
 
     Returns:
         :class:`Plan`.
@@ -138,7 +143,7 @@ def plan(
             and for bad arguments.
     """
     return _plan_on_cloud(
-        points, viewspace, n_iter, exclude, n_samp, rng, method, intrinsics, eps, poses, {}, dilate
+        points, viewspace, n_iter, exclude, rng, settings, intrinsics, eps, poses, {}
     )
 
 
@@ -160,37 +165,23 @@ def sph_hull_points(points: np.ndarray, lmax: int = 3) -> np.ndarray:
 def plan_sph(
     points: np.ndarray,
     viewspace: np.ndarray,
-    lmax: int = 3,
     n_iter: int = DEFAULT_N_ITER,
     exclude: Iterable[int] = (),
-    n_samp: int = DEFAULT_N_SAMP,
     rng: np.random.Generator | int = 0,
-    method: str = "analytic",
+    settings: PlannerSettings = PlannerSettings(),  # noqa: B008 - frozen dataclass
     intrinsics: Intrinsics = Intrinsics(),  # noqa: B008 - frozen dataclass, immutable default
     eps: float = DEFAULT_EPS,
     poses: np.ndarray | None = None,
-    dilate: bool = False,
 ) -> Plan:
     """Convex-hull set cover on the hull of the cloud's spherical signature.
 
-    Same as :func:`plan` (``dilate`` included: off by default, see there for its cost), but the
-    hull is that of :func:`sph_hull_points` (the signature of degree ``lmax`` placed at the
-    cloud's centroid) instead of the cloud's own. ``timings`` gets a ``signature`` entry too.
+    Same as :func:`plan` (``settings.dilate`` included: off by default, see there for its cost),
+    but the hull is that of :func:`sph_hull_points` (the signature of degree ``settings.lmax``
+    placed at the cloud's centroid) instead of the cloud's own. ``timings`` gets a ``signature`` entry too.
     """
     t0 = time.perf_counter()
-    signature = sph_hull_points(points, lmax)
+    signature = sph_hull_points(points, settings.lmax)
     timings = {"signature": time.perf_counter() - t0}
     return _plan_on_cloud(
-        signature,
-        viewspace,
-        n_iter,
-        exclude,
-        n_samp,
-        rng,
-        method,
-        intrinsics,
-        eps,
-        poses,
-        timings,
-        dilate,
+        signature, viewspace, n_iter, exclude, rng, settings, intrinsics, eps, poses, timings
     )

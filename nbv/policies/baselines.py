@@ -7,9 +7,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nbv.geometry.scores import coverage_gains, vig_gains
+from nbv.dataset.records import score_functions
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import _record
+from nbv.utils.selection import masked_argmax
 
 
 @dataclass
@@ -34,11 +35,7 @@ class OraclePolicy:
 
     def __call__(self, state: EpisodeState) -> int:
         t0 = time.perf_counter()
-        model, view = state.model, state.model.views[state.viewspace]
-        if self.score == "coverage":
-            gains = coverage_gains(view.coverage, state.view_state, len(model.gt_points))
-        else:
-            gains = vig_gains(view.view_hulls(), state.view_state, model.gt_hull_volume)
-        choice = int(np.argmax(np.where(state.view_state, -np.inf, gains)))
+        gains, _ = score_functions(state.model, self.score, state.viewspace)
+        choice = masked_argmax(gains(state.view_state), state.view_state)
         _record(self.timings, "gains", time.perf_counter() - t0)
         return choice

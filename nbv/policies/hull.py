@@ -11,6 +11,7 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.planning.hull import convex_hull
 from nbv.planning.planner import Plan, plan, sph_hull_points
+from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
 from nbv.policies.inputs import _NO_SPREAD, _cloud_or_origin, _has_spread, _record
 
@@ -48,21 +49,19 @@ class HullSCOPolicy:
     visited views, and return the plan; the episode takes it in order. With ``probes = k``:
     first return ``k`` seeded random unvisited views (they count in the episode); on the next
     call plan from the start view's cloud plus ``probe_points`` random points of each probe
-    view (the paper's "three random views with 100 points").
+    view (``settings.probe_points``; the paper's "three random views with 100 points").
 
     A cloud whose hull has no volume (a flat object, a view that saw a plane) is planned on
     :func:`thicken`'s slab around it, and a note says so.
 
     Attributes:
         rng: generator of the probe views, probe points and the hull samples.
-        sph: plan on the hull of the cloud's spherical signature of degree ``lmax``.
-        probes, probe_points: see above.
+        settings: the planner's settings (:class:`nbv.planning.settings.PlannerSettings`):
+            hull samples, view simulation, dilation, the signature's degree ``lmax`` and the
+            ``probe_points`` of each probe view.
+        sph: plan on the hull of the cloud's spherical signature of degree ``settings.lmax``.
+        probes: random probe views taken first (0 for none; see above).
         n_views: views in an episode (start view included): the plan fills it.
-        n_samp: points drawn on the hull.
-        method: view simulation, ``analytic`` (fast) or ``raycast`` (see :mod:`nbv.planning.sco`).
-        dilate: with ``analytic``, dilate each view's visible hull points by ``eps``
-            (:mod:`nbv.planning.dilation`): closer to ``raycast``, but slower (see :mod:`nbv.planning.sco`).
-            Off by default.
         intrinsics: the camera of the dataset.
         eps: capture distance: of the ``raycast`` simulation, and of the ``analytic`` one's
             dilation with ``dilate`` (the hull points within ``eps`` of a pixel's point count
@@ -70,14 +69,10 @@ class HullSCOPolicy:
     """
 
     rng: np.random.Generator
+    settings: PlannerSettings = field(default_factory=PlannerSettings)
     sph: bool = False
-    lmax: int = 3
     probes: int = 0
-    probe_points: int = 100
     n_views: int = EPISODE_VIEWS
-    n_samp: int = 16384
-    method: str = "analytic"
-    dilate: bool = False
     intrinsics: Intrinsics = field(default_factory=Intrinsics)
     eps: float = DEFAULT_EPS
     timings: dict[str, list[float]] = field(default_factory=dict)
@@ -101,7 +96,7 @@ class HullSCOPolicy:
         t0 = time.perf_counter()
         if self.sph:
             if _has_spread(cloud):
-                cloud = sph_hull_points(cloud, self.lmax)
+                cloud = sph_hull_points(cloud, self.settings.lmax)
             else:
                 self.notes.append(_NO_SPREAD + "; planned on the cloud itself")
             _record(self.timings, "signature", time.perf_counter() - t0)
@@ -112,13 +107,11 @@ class HullSCOPolicy:
                 poses[:, :3, 3],
                 n_iter=n_iter,
                 exclude=visited,
-                n_samp=self.n_samp,
                 rng=self.rng,
-                method=self.method,
+                settings=self.settings,
                 intrinsics=self.intrinsics,
                 eps=self.eps,
                 poses=poses,
-                dilate=self.dilate,
             )
 
         try:
@@ -144,7 +137,9 @@ class HullSCOPolicy:
         parts = [view.view_points(state.order[0])]
         for v in state.order[1:]:
             pts = view.view_points(v)
-            keep = self.rng.choice(len(pts), min(self.probe_points, len(pts)), replace=False)
+            keep = self.rng.choice(
+                len(pts), min(self.settings.probe_points, len(pts)), replace=False
+            )
             parts.append(pts[np.sort(keep)])
         return np.concatenate(parts)
 

@@ -19,12 +19,13 @@ class NetworkPolicy:
     spherical signature (``input == "signature"``, degree ``lmax``) and the view state in, the
     best unvisited view of its predicted gains out.
 
-    ``precision`` is the arithmetic of the forward pass (:data:`nbv.models.net.PRECISIONS`; ``"auto"``
-    is bfloat16 autocast where the CPU runs it natively). ``timings`` collects seconds per
-    decision: ``sampling`` (or ``signature``) and ``network``.
+    ``precision`` is the arithmetic of the forward pass (:data:`nbv.models.precision.PRECISIONS`;
+    ``"auto"`` is bfloat16 autocast where the CPU runs it natively). ``timings`` collects seconds
+    per decision: ``sampling`` (or ``signature``) and ``network``.
     """
 
-    model: object  # nbv.models.net.PCNBV, kept untyped so that importing this module needs no torch
+    # nbv.models.pcnbv.PCNBV, kept untyped so that importing this module needs no torch
+    model: object
     input: str = "points"
     n_points: int = 512
     lmax: int = 3
@@ -40,9 +41,11 @@ class NetworkPolicy:
         number of points and (unless ``precision`` is given) the precision it was trained with.
 
         Raises:
-            nbv.models.net.CheckpointError: the file is missing or unusable (the message names it).
+            nbv.models.checkpoints.CheckpointError: the file is missing or unusable (the message
+                names it).
         """
-        from nbv.models.net import for_inference, load_checkpoint
+        from nbv.models.checkpoints import load_checkpoint
+        from nbv.models.inference import for_inference
 
         net, extra = load_checkpoint(path, n_views=n_views)
         precision = precision or str(extra.get("precision", "fp32"))
@@ -81,7 +84,8 @@ class NetworkPolicy:
         """
         import torch
 
-        from nbv.models.net import autocast, flush_denormals, masked_argmax
+        from nbv.models.inference import masked_argmax
+        from nbv.models.precision import autocast, flush_denormals
 
         t0 = time.perf_counter()
         points = self.features(cloud)

@@ -51,9 +51,10 @@ def write_text(path: str | os.PathLike[str], text: str) -> None:
             handle.write(text)
 
 
-def append_line(path: str | os.PathLike[str], line: str) -> None:
-    """Append one line to ``path`` and flush it to disk before returning (a durable log)."""
+def append_durably(path: str | os.PathLike[str], text: str) -> None:
+    """Append ``text`` to ``path`` and flush it to disk before returning (a durable log: a kill
+    can tear at most the last line, which the log's reader drops)."""
     with open(path, "a") as handle:
-        handle.write(line.rstrip("\n") + "\n")
+        handle.write(text)
         handle.flush()
         os.fsync(handle.fileno())

@@ -1,0 +1,200 @@
+"""The registry of view-selection methods: the one place that names them.
+
+Each :class:`Method` says its name, what it needs (a network checkpoint of some input, the ground
+truth), which disturbance checks apply to it, how it is drawn, the paper's timing row when the
+paper has one, and how to build a fresh policy for one episode. The evaluator, the disturbance
+checks, the report and the plots read from :data:`METHODS`, so adding a method is one entry here.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from nbv.geometry.camera import Intrinsics
+from nbv.planning.settings import PlannerSettings
+from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
+from nbv.policies.network import NetworkPolicy
+
+#: Disturbance checks (the paper's Fig. 18): what each one replaces of a policy's input.
+CHECKS = ("random_cloud", "permuted_state", "random_hull")
+
+
+@dataclass(frozen=True)
+class MethodContext:
+    """What building a method's policy may use, the same for every episode of a run.
+
+    Attributes:
+        networks: network method name -> a loaded :class:`NetworkPolicy`.
+        planner: the convex-hull planner's settings.
+        intrinsics: the dataset's camera.
+        eps: the dataset's coverage distance (the planner's capture distance: of the raycast
+            simulation, and of the analytic one's dilation).
+        n_views: views per episode, start view included.
+    """
+
+    networks: Mapping[str, NetworkPolicy]
+    planner: PlannerSettings
+    intrinsics: Intrinsics
+    eps: float
+    n_views: int
+
+
+Policy = Callable[[Any], "int | list[int]"]
+
+
+@dataclass(frozen=True)
+class Method:
+    """One view-selection method.
+
+    Attributes:
+        name: its name in configs, results and reports.
+        summary: one line for the report and ``--help``-like listings.
+        build: ``(context, rng) -> policy`` for one episode (the policy's ``timings`` start
+            empty).
+        network_input: ``points`` or ``signature`` when the method runs a trained checkpoint
+            of that input (it needs ``checkpoints.<name>``); None otherwise.
+        ground_truth: the method reads the ground truth (an upper reference, not a method a
+            robot could run).
+        checks: the disturbance checks that apply to it.
+        planner: a geometric planner (its plans' zero-gain picks are fill, not its score).
+        style: matplotlib colour and line style of its curves.
+        paper_times: the paper's Table 1 row, stage -> seconds per 9-view reconstruction
+            (FACTS.md), when the paper times this method.
+    """
+
+    name: str
+    summary: str
+    build: Callable[[MethodContext, np.random.Generator], Policy]
+    network_input: str | None = None
+    ground_truth: bool = False
+    checks: tuple[str, ...] = ()
+    planner: bool = False
+    style: tuple[str, str] = ("#8c564b", "-")
+    paper_times: Mapping[str, float] = field(default_factory=dict)
+
+
+def _hull_policy(
+    ctx: MethodContext,
+    rng: np.random.Generator,
+    sph: bool = False,
+    probes: bool = False,
+    replan: bool = False,
+) -> HullSCOPolicy:
+    kind = HullSCOReplanPolicy if replan else HullSCOPolicy
+    return kind(
+        rng=rng,
+        settings=ctx.planner,
+        sph=sph,
+        probes=ctx.planner.probes if probes else 0,
+        n_views=ctx.n_views,
+        intrinsics=ctx.intrinsics,
+        eps=ctx.eps,
+    )
+
+
+RANDOM = Method(
+    "random",
+    "a seeded random unvisited view",
+    lambda ctx, rng: RandomPolicy(rng),
+    style=("#7f7f7f", ":"),
+)
+ORACLE = Method(
+    "oracle",
+    "greedy by the true coverage gain (reads the ground truth: the upper reference)",
+    lambda ctx, rng: OraclePolicy("coverage"),
+    ground_truth=True,
+    style=("#000000", "--"),
+)
+PCNBV = Method(
+    "pcnbv",
+    "PCNBV on the accumulated cloud (a training checkpoint)",
+    lambda ctx, rng: ctx.networks["pcnbv"].fresh(),
+    network_input="points",
+    checks=("random_cloud", "permuted_state"),
+    style=("#1f77b4", "-"),
+    paper_times={"sampling": 3.12, "network": 0.21, "total": 3.24, "online": 3.24},
+)
+PCNBV_SPH = Method(
+    "pcnbv_sph",
+    "PCNBV on the cloud's spherical-harmonics signature (a training checkpoint)",
+    lambda ctx, rng: ctx.networks["pcnbv_sph"].fresh(),
+    network_input="signature",
+    checks=("random_cloud", "permuted_state"),
+    style=("#17becf", "-"),
+    paper_times={"signature": 2.53, "network": 0.02, "total": 2.55, "online": 2.55},
+)
+HULL_SCO = Method(
+    "hull_sco",
+    "convex-hull set cover, one-shot from the start view's cloud",
+    lambda ctx, rng: _hull_policy(ctx, rng),
+    checks=("random_hull",),
+    planner=True,
+    style=("#d62728", "-"),
+    # Its convex-hull row simulates views in Blender; its total (3.32 s) is as published.
+    paper_times={"simulation": 3.32, "set_cover": 0.12, "total": 3.32, "online": 0.12},
+)
+HULL_SCO_SPH = Method(
+    "hull_sco_sph",
+    "convex-hull set cover on the hull of the cloud's spherical signature",
+    lambda ctx, rng: _hull_policy(ctx, rng, sph=True),
+    planner=True,
+    style=("#ff7f0e", "-"),
+)
+HULL_SCO_PROBES = Method(
+    "hull_sco_probes",
+    "hull_sco after `hull.probes` random probe views",
+    lambda ctx, rng: _hull_policy(ctx, rng, probes=True),
+    planner=True,
+    style=("#9467bd", "-."),
+)
+HULL_SCO_REPLAN = Method(
+    "hull_sco_replan",
+    "convex-hull set cover replanned on the whole cloud after every view",
+    lambda ctx, rng: _hull_policy(ctx, rng, replan=True),
+    planner=True,
+    style=("#2ca02c", "-."),
+)
+
+#: Every method, in report order.
+METHODS: dict[str, Method] = {
+    m.name: m
+    for m in (
+        RANDOM,
+        ORACLE,
+        PCNBV,
+        PCNBV_SPH,
+        HULL_SCO,
+        HULL_SCO_SPH,
+        HULL_SCO_PROBES,
+        HULL_SCO_REPLAN,
+    )
+}
+#: The methods that run a trained network: name -> the checkpoint input they need.
+NETWORK_INPUTS: dict[str, str] = {
+    m.name: m.network_input for m in METHODS.values() if m.network_input is not None
+}
+#: The planner methods, in report order (the one-shot plan first: the reconstruction plot's pick).
+PLANNERS: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.planner)
+
+
+def method(name: str) -> Method:
+    """The registered method ``name``.
+
+    Raises:
+        ValueError: no such method (the message lists the registered ones).
+    """
+    if name not in METHODS:
+        raise ValueError(f"unknown method {name!r}; registered: {', '.join(METHODS)}")
+    return METHODS[name]
+
+
+def check_methods(check: str) -> tuple[str, ...]:
+    """The methods a disturbance check applies to, in report order."""
+    if check not in CHECKS:
+        raise ValueError(f"unknown check {check!r}; allowed: {', '.join(CHECKS)}")
+    return tuple(m.name for m in METHODS.values() if check in m.checks)

@@ -1,0 +1,75 @@
+"""The method registry: every method builds a fresh policy of its kind from one context, and the
+lists that the evaluator, the checks and the report read are derived from it."""
+
+import numpy as np
+import pytest
+from datagen import SMALL_CAMERA
+
+from nbv.planning.settings import PlannerSettings
+from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
+from nbv.policies.network import NetworkPolicy
+from nbv.policies.registry import (
+    CHECKS,
+    METHODS,
+    NETWORK_INPUTS,
+    PLANNERS,
+    MethodContext,
+    check_methods,
+    method,
+)
+
+
+def _context(planner: PlannerSettings | None = None) -> MethodContext:
+    networks = {
+        name: NetworkPolicy(model=object(), input=kind) for name, kind in NETWORK_INPUTS.items()
+    }
+    return MethodContext(networks, planner or PlannerSettings(), SMALL_CAMERA, 0.02, 7)
+
+
+def test_every_method_builds_a_fresh_policy_of_its_kind():
+    ctx = _context(PlannerSettings(n_samp=123, probes=2, lmax=1))
+    kinds = {}
+    for name, m in METHODS.items():
+        assert m.name == name
+        first = m.build(ctx, np.random.default_rng(0))
+        second = m.build(ctx, np.random.default_rng(0))
+        assert first is not second and first.timings == {} and first.timings is not second.timings
+        kinds[name] = type(first)
+    assert kinds["random"] is RandomPolicy and kinds["oracle"] is OraclePolicy
+    assert kinds["pcnbv"] is NetworkPolicy and kinds["pcnbv_sph"] is NetworkPolicy
+    assert kinds["hull_sco_replan"] is HullSCOReplanPolicy
+    for name in ("hull_sco", "hull_sco_sph", "hull_sco_probes"):
+        assert kinds[name] is HullSCOPolicy
+    # The planners share the context's settings; only the probing one takes probe views and
+    # only the signature one plans on the signature.
+    for name in PLANNERS:
+        policy = METHODS[name].build(ctx, np.random.default_rng(0))
+        assert policy.settings.n_samp == 123 and policy.n_views == 7 and policy.eps == 0.02
+        assert policy.intrinsics == SMALL_CAMERA
+        assert policy.probes == (2 if name == "hull_sco_probes" else 0)
+        assert policy.sph == (name == "hull_sco_sph")
+
+
+def test_derived_lists_follow_the_entries():
+    assert list(METHODS) == [
+        "random", "oracle", "pcnbv", "pcnbv_sph",
+        "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan",
+    ]  # fmt: skip
+    assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature"}
+    assert PLANNERS == ("hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan")
+    assert [m.name for m in METHODS.values() if m.ground_truth] == ["oracle"]
+    assert check_methods("random_cloud") == ("pcnbv", "pcnbv_sph")
+    assert check_methods("permuted_state") == ("pcnbv", "pcnbv_sph")
+    assert check_methods("random_hull") == ("hull_sco",)
+    for m in METHODS.values():
+        assert set(m.checks) <= set(CHECKS)
+        assert len(m.style) == 2
+
+
+def test_unknown_names_are_refused_with_the_registered_ones():
+    assert method("hull_sco") is METHODS["hull_sco"]
+    with pytest.raises(ValueError, match="registered: random, oracle, pcnbv"):
+        method("spread_out")
+    with pytest.raises(ValueError, match="allowed: random_cloud, permuted_state, random_hull"):
+        check_methods("noise")
