@@ -28,7 +28,7 @@ from nbv.eval.disturb import auc_changes, permuted_state, random_ball
 from nbv.eval.evaluate import EvalDataError, evaluate, run
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
-from nbv.eval.report import groups
+from nbv.eval.tables import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import auc

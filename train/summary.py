@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import logging
 from collections import defaultdict
 from pathlib import Path
 
@@ -24,6 +25,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from nbv.policies.episode import auc  # noqa: E402
+
+log = logging.getLogger(__name__)
 
 
 def find_runs(folder: Path) -> list[Path]:
@@ -119,8 +122,9 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     out = args.out or args.folder
     summarise(args.folder, out)
-    print(f"{out / 'cv_table.md'}, {out / 'cv_coverage_by_view.png'}:")
-    print((out / "cv_table.md").read_text())
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    log.info("wrote %s and %s:\n%s", out / "cv_table.md", out / "cv_coverage_by_view.png",
+             (out / "cv_table.md").read_text())  # fmt: skip
 
 
 if __name__ == "__main__":

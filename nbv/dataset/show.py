@@ -8,6 +8,7 @@ beside the ground truth.
 from __future__ import annotations
 
 import argparse
+import logging
 from pathlib import Path
 
 import matplotlib
@@ -19,6 +20,8 @@ import numpy as np  # noqa: E402
 from nbv.dataset.reader import open_dataset  # noqa: E402
 from nbv.dataset.records import ModelData  # noqa: E402
 from nbv.geometry.camera import Intrinsics, project  # noqa: E402
+
+log = logging.getLogger(__name__)
 
 
 def depth_panel(ax, model: ModelData, viewspace: str, v: int, intrinsics: Intrinsics) -> None:
@@ -80,7 +83,9 @@ def main(argv: list[str] | None = None) -> None:
     if args.model not in dataset:
         parser.error(f"model {args.model!r} not in {args.dataset}; some keys: {list(dataset)[:8]}")
     out = args.out or Path(f"{args.model}_{args.viewspace}.png")
-    print(draw_model(dataset[args.model], dataset.intrinsics, args.viewspace, out))
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    path = draw_model(dataset[args.model], dataset.intrinsics, args.viewspace, out)
+    log.info("wrote %s", path)
 
 
 if __name__ == "__main__":

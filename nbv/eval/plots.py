@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402 - the backend must be chosen first
 import numpy as np  # noqa: E402
 
 from nbv.eval.disturb import auc_changes  # noqa: E402
-from nbv.eval.report import groups, method_rank, order_methods  # noqa: E402
+from nbv.eval.tables import groups, method_rank, order_methods  # noqa: E402
 from nbv.policies.registry import METHODS, ORACLE, PLANNERS  # noqa: E402
 
 CHECK_LABELS = {

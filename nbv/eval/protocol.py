@@ -73,8 +73,6 @@ def episode_rng(seed: int, *names: str | int) -> np.random.Generator:
     return named_rng(seed, *names)
 
 
-
-
 def episode_timings(policy, decision_times: list[float]) -> dict[str, float]:
     """Seconds per stage summed over an episode, with ``total`` and ``online``."""
     out = {k: float(np.sum(v)) for k, v in getattr(policy, "timings", {}).items()}

@@ -9,7 +9,7 @@ import math
 import torch
 from torch import Tensor, nn
 
-from nbv.models.layers import _Pointwise
+from nbv.models.layers import Pointwise
 from nbv.models.pcnbv import PCNBV
 from nbv.models.precision import resolve_precision
 
@@ -34,7 +34,7 @@ def for_inference(model: PCNBV, precision: str = "fp32") -> PCNBV:
     bf16 = resolve_precision(precision, device) == "bf16"
     out = copy.deepcopy(model).eval().requires_grad_(False)
     for module in out.modules():
-        if isinstance(module, _Pointwise) and module.norm is not None:
+        if isinstance(module, Pointwise) and module.norm is not None:
             norm, old = module.norm, module.linear
             scale = norm.weight / torch.sqrt(norm.running_var + norm.eps)
             bias = old.bias if old.bias is not None else torch.zeros_like(norm.running_mean)

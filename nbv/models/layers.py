@@ -13,10 +13,10 @@ from torch import Tensor, nn
 
 from nbv.models.config import PCNBVConfig
 from nbv.models.neighbours import gather_neighbours, knn_indices
-from nbv.models.precision import _float32
+from nbv.models.precision import in_float32
 
 
-class _Pointwise(nn.Module):
+class Pointwise(nn.Module):
     """Shared ``Linear`` over the last axis (a 1x1 conv), optional batch norm over every other
     position, ReLU: ``(..., C_in) -> (..., C_out)``."""
 
@@ -62,7 +62,7 @@ class DenseEdgeConv(nn.Module):
         super().__init__()
         self.k = k
         widths = [2 * c_in] + [c_in + i * growth for i in range(1, layers)]
-        self.layers = nn.ModuleList(_Pointwise(w, growth, batch_norm) for w in widths)
+        self.layers = nn.ModuleList(Pointwise(w, growth, batch_norm) for w in widths)
 
     def forward(self, x: Tensor) -> Tensor:
         c = x.shape[-1]
@@ -91,18 +91,18 @@ class FeatureExtractor(nn.Module):
     def __init__(self, config: PCNBVConfig) -> None:
         super().__init__()
         c0, bn = config.first_channels, config.batch_norm
-        self.first = _Pointwise(3, c0, bn)
+        self.first = Pointwise(3, c0, bn)
         self.blocks = nn.ModuleList(
             DenseEdgeConv(c0, config.growth, config.dense_layers, config.k, bn)
             for _ in range(config.blocks)
         )
         widths = [c0 + i * config.block_out_channels for i in range(1, config.blocks)]
-        self.squeeze = nn.ModuleList(_Pointwise(w, c0, bn) for w in widths)
+        self.squeeze = nn.ModuleList(Pointwise(w, c0, bn) for w in widths)
 
     def forward(self, points: Tensor) -> Tensor:
         # float32 even under autocast: its products are too narrow (12-60 channels) for
         # bfloat16 to pay, and its many small element-wise steps run slower in bfloat16.
-        with _float32(points):
+        with in_float32(points):
             features = self.first(points)
             features = torch.cat([self.blocks[0](features), features], dim=-1)
             for squeeze, block in zip(self.squeeze, self.blocks[1:], strict=True):

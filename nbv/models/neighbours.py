@@ -7,7 +7,7 @@ import math
 import torch
 from torch import Tensor
 
-from nbv.models.precision import _float32
+from nbv.models.precision import in_float32
 
 
 def knn_indices(x: Tensor, k: int) -> Tensor:
@@ -21,7 +21,7 @@ def knn_indices(x: Tensor, k: int) -> Tensor:
     Returns:
         (B, N, k) int64 indices into the N axis, in no particular order; not differentiable.
     """
-    with torch.no_grad(), _float32(x):
+    with torch.no_grad(), in_float32(x):
         x = x.float()
         n = x.shape[1]
         # On the CPU a few samples at a time, so that their distance tables stay in the cache

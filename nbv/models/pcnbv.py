@@ -24,8 +24,8 @@ import torch
 from torch import Tensor, nn
 
 from nbv.models.config import PCNBVConfig
-from nbv.models.layers import FeatureExtractor, SelfAttention, _Pointwise, max_over
-from nbv.models.precision import _float32
+from nbv.models.layers import FeatureExtractor, Pointwise, SelfAttention, max_over
+from nbv.models.precision import in_float32
 
 
 class PCNBV(nn.Module):
@@ -45,10 +45,7 @@ class PCNBV(nn.Module):
         self.attention = SelfAttention(cfg.concat_channels, cfg.attention_channels)
         widths = (cfg.concat_channels, *cfg.conv_channels)
         self.convs = nn.Sequential(
-            *(
-                _Pointwise(a, b, cfg.batch_norm)
-                for a, b in zip(widths[:-1], widths[1:], strict=True)
-            )
+            *(Pointwise(a, b, cfg.batch_norm) for a, b in zip(widths[:-1], widths[1:], strict=True))
         )
         widths = (cfg.conv_channels[-1], *cfg.fc_channels)
         layers: list[nn.Module] = []
@@ -111,7 +108,7 @@ class PCNBV(nn.Module):
         tiled_state = view_state.to(per_point.dtype).unsqueeze(1).expand(-1, n, -1)
         x = torch.cat([per_point, tiled_global, tiled_state], dim=-1)
         x = max_over(self.convs(self.attention(x)), 1)
-        with _float32(x):
+        with in_float32(x):
             return self.head(x.to(points.dtype))
 
 

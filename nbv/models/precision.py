@@ -3,7 +3,7 @@
 Forward passes may run under bfloat16 autocast (:func:`autocast`, ``"bf16"``), which CPUs with
 AMX or AVX512-BF16 run 1.3-1.5x faster than float32. Only the self-attention and the wide 1x1
 convs use it. The dense EdgeConv feature extractor (with its neighbour search) and the fully
-connected head stay in float32 (:func:`_float32`): neighbour ranks and the small differences
+connected head stay in float32 (:func:`in_float32`): neighbour ranks and the small differences
 between views' predicted gains are what the output is used for, bfloat16 keeps only about three
 significant digits, and the extractor's narrow products gain nothing from it.
 """
@@ -75,6 +75,6 @@ def flush_denormals() -> Iterator[None]:
             torch.set_flush_denormal(False)
 
 
-def _float32(x: Tensor) -> contextlib.AbstractContextManager:
+def in_float32(x: Tensor) -> contextlib.AbstractContextManager:
     """A context with autocast off on ``x``'s device (its float32 region)."""
     return torch.autocast(x.device.type, enabled=False)

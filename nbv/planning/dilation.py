@@ -40,15 +40,15 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.planning.visibility import (
-    _affine_at,
-    _as_face_ids,
-    _as_margin,
-    _as_poses,
-    _frustum_planes,
-    _ranges,
+    affine_at,
     analytic_visibility_faces,
+    as_face_ids,
+    as_margin,
+    as_poses,
     corners_in_image,
     facing_triangles,
+    frustum_planes,
+    index_ranges,
 )
 
 #: A triangle whose bounding ball, grown by eps, holds at most this many samples (expected)
@@ -268,11 +268,11 @@ def _candidates_by_pairs(
     keep = own != other
     centre_xyz = np.ascontiguousarray(centre.T)
     for k in range(4):
-        value = _affine_at(np.take(bounds[k], other, axis=1), np.take(centre_xyz, own, axis=1))
+        value = affine_at(np.take(bounds[k], other, axis=1), np.take(centre_xyz, own, axis=1))
         keep &= value <= radius[own] + eps
     own, other = own[keep], other[keep]
     own_corners = corners[own].transpose(2, 1, 0)  # (xyz, corner, P)
-    values = np.stack([_affine_at(bounds[k][:, other], own_corners) for k in range(4)])
+    values = np.stack([affine_at(bounds[k][:, other], own_corners) for k in range(4)])
     lo, hi = _coordinate_ranges(values, eps)  # (3, P) each
     # Each bound must reach eps somewhere on the own triangle, at a corner if anywhere.
     lowest = np.minimum(np.minimum(values[:, 0], values[:, 1]), values[:, 2])
@@ -290,7 +290,7 @@ def _candidates_by_pairs(
     first, stop = np.zeros(len(own), dtype=np.intp), np.zeros(len(own), dtype=np.intp)
     for j in np.unique(axis):
         # Keys face + lambda_j / 2 sort by triangle, then by the coordinate within it.
-        weight = _affine_at(np.take(duals[j], face_ids, axis=1), xyz)
+        weight = affine_at(np.take(duals[j], face_ids, axis=1), xyz)
         key = face_ids + 0.5 * np.clip(weight, 0.0, 1.0)
         sorted_by[j] = np.argsort(key)
         key = key[sorted_by[j]]
@@ -299,7 +299,7 @@ def _candidates_by_pairs(
         stop[chosen] = np.searchsorted(key, own[chosen] + 0.5 * hi[chosen], side="right")
     lengths = stop - first
     pair = np.repeat(np.arange(len(own)), lengths)
-    return sorted_by[axis[pair], _ranges(first, lengths)], other[pair]
+    return sorted_by[axis[pair], index_ranges(first, lengths)], other[pair]
 
 
 def near_triangles(
@@ -325,8 +325,8 @@ def near_triangles(
         :class:`NearTriangles`.
     """
     samples = as_cloud(samples, "samples")
-    face_ids = _as_face_ids(face_ids, hull, len(samples))
-    eps = _as_margin(eps, "eps")
+    face_ids = as_face_ids(face_ids, hull, len(samples))
+    eps = as_margin(eps, "eps")
     n_faces = len(hull.simplices)
     corners = hull.points[hull.simplices]  # (F, 3, 3)
     bounds = _beyond_planes(corners, hull.equations)  # (4, 4, F)
@@ -348,10 +348,10 @@ def near_triangles(
     sample_idx, tri = sample_idx[keep], tri[keep]
 
     xyz = np.take(samples.T, sample_idx, axis=1)
-    height = _affine_at(np.take(bounds[0], tri, axis=1), xyz)
+    height = affine_at(np.take(bounds[0], tri, axis=1), xyz)
     over = np.zeros(len(tri))
     for k in (1, 2, 3):
-        np.maximum(over, _affine_at(np.take(bounds[k], tri, axis=1), xyz), out=over)
+        np.maximum(over, affine_at(np.take(bounds[k], tri, axis=1), xyz), out=over)
     eps_sq = eps * eps
     close = (height <= eps) & (height * height + over * over <= eps_sq)
     outside = np.flatnonzero(close & (over > 0.0))
@@ -572,8 +572,8 @@ def dilate_view_sets(
         ``(V, n)`` bool: ``seen`` with the added samples.
     """
     samples = as_cloud(samples, "samples")
-    face_ids = _as_face_ids(face_ids, hull, len(samples))
-    poses = _as_poses(poses)
+    face_ids = as_face_ids(face_ids, hull, len(samples))
+    poses = as_poses(poses)
     seen = np.asarray(seen, dtype=bool)
     if seen.shape != (len(poses), len(samples)):
         raise ValueError(f"seen must have shape {(len(poses), len(samples))}, got {seen.shape}")
@@ -583,10 +583,10 @@ def dilate_view_sets(
     hit_view, hit_group = np.nonzero(facing[:, near.other] & ~facing[:, near.own])
     lengths = np.diff(near.starts)[hit_group]
     views = [np.repeat(hit_view, lengths)]
-    picks = [near.sample[_ranges(near.starts[hit_group], lengths)]]
+    picks = [near.sample[index_ranges(near.starts[hit_group], lengths)]]
     triangles = [np.repeat(near.other[hit_group], lengths)]
     # Outside the image: only views the hull's corners do not all project into.
-    cut = np.flatnonzero(~corners_in_image(hull, _frustum_planes(poses, intrinsics)).all(axis=1))
+    cut = np.flatnonzero(~corners_in_image(hull, frustum_planes(poses, intrinsics)).all(axis=1))
     if cut.size:
         wide = analytic_visibility_faces(
             hull, samples, face_ids, poses[cut], intrinsics, margin=near.eps
@@ -595,7 +595,7 @@ def dilate_view_sets(
         border_view = cut[border_view]
         starts, others = _near_by_sample(near, len(samples))
         count = starts[border_sample + 1] - starts[border_sample]
-        nearby = others[_ranges(starts[border_sample], count)]
+        nearby = others[index_ranges(starts[border_sample], count)]
         near_view = np.repeat(border_view, count)
         keep = facing[near_view, nearby]
         views += [border_view, near_view[keep]]

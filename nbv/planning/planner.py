@@ -11,10 +11,10 @@ from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.sph import signature_with_centroid
 from nbv.planning.hull import convex_hull, sample_on_hull
-from nbv.planning.set_cover import DEFAULT_N_ITER, _as_exclude, greedy_packed, pack_sets
+from nbv.planning.set_cover import DEFAULT_N_ITER, as_exclude, greedy_packed, pack_sets
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets
-from nbv.planning.visibility import _as_poses
+from nbv.planning.visibility import as_poses
 
 
 @dataclass
@@ -58,14 +58,14 @@ def _plan_on_cloud(
 ) -> Plan:
     """Algorithms 2 and 3 on the hull of ``points``; adds its stage times to ``timings``."""
     viewspace = _as_viewspace(viewspace)
-    excluded = _as_exclude(exclude, len(viewspace))
+    excluded = as_exclude(exclude, len(viewspace))
     clock = time.perf_counter
     t0 = clock()
     hull = convex_hull(points)
     t1 = clock()
     samples, normals, face_ids = sample_on_hull(hull, settings.n_samp, rng)
     t2 = clock()
-    poses = viewspace_poses(viewspace) if poses is None else _as_poses(poses)
+    poses = viewspace_poses(viewspace) if poses is None else as_poses(poses)
     if len(poses) != len(viewspace):
         raise ValueError(f"poses has {len(poses)} cameras, the viewspace {len(viewspace)}")
     sets = view_sets(

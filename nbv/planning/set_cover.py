@@ -37,7 +37,7 @@ def _as_sets(sets: np.ndarray) -> np.ndarray:
     return arr
 
 
-def _as_exclude(exclude: Iterable[int], n_views: int) -> np.ndarray:
+def as_exclude(exclude: Iterable[int], n_views: int) -> np.ndarray:
     idx = np.asarray(list(exclude), dtype=np.int64).reshape(-1)
     bad = idx[(idx < 0) | (idx >= n_views)]
     if bad.size:
@@ -104,7 +104,7 @@ def greedy_packed(
     if rows.ndim != 2 or rows.dtype != np.uint64:
         raise ValueError(f"rows must be a (V, W) uint64 array, got {rows.dtype} {rows.shape}")
     n_views = rows.shape[0]
-    excluded = _as_exclude(exclude, n_views)
+    excluded = as_exclude(exclude, n_views)
     directions = None if positions is None else _as_positions(positions, n_views)
     if isinstance(n_iter, bool) or not isinstance(n_iter, int | np.integer) or n_iter < 0:
         raise ValueError(f"n_iter must be an integer >= 0, got {n_iter!r}")

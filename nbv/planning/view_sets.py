@@ -9,7 +9,7 @@ from nbv.geometry.camera import Intrinsics, backproject
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS, covered_mask
 from nbv.planning.dilation import dilate_view_sets, near_triangles
-from nbv.planning.visibility import _as_poses, analytic_visibility, analytic_visibility_faces
+from nbv.planning.visibility import analytic_visibility, analytic_visibility_faces, as_poses
 
 METHODS = ("analytic", "raycast")
 
@@ -51,7 +51,7 @@ def raycast_view_sets(
     from nbv.render.raycast import render_raycast  # Open3D is heavy; only this path needs it
 
     samples = as_cloud(samples, "samples")
-    poses = _as_poses(poses)
+    poses = as_poses(poses)
     vertices, faces = _hull_mesh(hull)
     depth = render_raycast(vertices, faces, poses, intrinsics)
     sets = np.zeros((len(poses), len(samples)), dtype=bool)

@@ -4,7 +4,7 @@ A convex surface cannot occlude itself, so a point ``p`` with outward normal ``n
 camera centred at ``c`` exactly when its face looks at the camera, ``n . (c - p) > 0``, and it
 projects inside the image, ``0 <= u <= W - 1`` and ``0 <= v <= H - 1`` (pixel-centre coordinates
 of :mod:`nbv.geometry.camera`) in front of the camera. Both are sign tests of dot products: with the
-camera centre, and with the five half-spaces of each camera's image (:func:`_frustum_planes`,
+camera centre, and with the five half-spaces of each camera's image (:func:`frustum_planes`,
 planes through the camera centre), for all views and points at once
 (:func:`analytic_visibility`). On the samples of a convex hull, :func:`analytic_visibility_faces`
 gives the same answer with much less work by deciding whole triangles at once, from
@@ -37,14 +37,14 @@ from nbv.geometry.clouds import as_cloud
 _FACING_TOL = 1e-9
 
 
-def _as_poses(poses: np.ndarray) -> np.ndarray:
+def as_poses(poses: np.ndarray) -> np.ndarray:
     arr = np.asarray(poses, dtype=np.float64)
     if arr.ndim != 3 or arr.shape[1:] != (4, 4):
         raise ValueError(f"poses must have shape (V, 4, 4), got {arr.shape}")
     return arr
 
 
-def _frustum_planes(poses: np.ndarray, intrinsics: Intrinsics, margin: float = 0.0) -> np.ndarray:
+def frustum_planes(poses: np.ndarray, intrinsics: Intrinsics, margin: float = 0.0) -> np.ndarray:
     """Half-spaces of each camera's image, ``(V, 5, 4)``: ``a . p + b >= 0`` inside.
 
     Rows: in front (``z > 0``), ``u >= 0``, ``u <= W - 1``, ``v >= 0``, ``v <= H - 1``; with
@@ -73,7 +73,7 @@ def _frustum_planes(poses: np.ndarray, intrinsics: Intrinsics, margin: float = 0
     return np.concatenate([normal, offset[..., None]], axis=2)
 
 
-def _as_margin(margin: float, name: str = "margin") -> float:
+def as_margin(margin: float, name: str = "margin") -> float:
     value = float(margin)
     if not (np.isfinite(value) and value >= 0.0):
         raise ValueError(f"{name} must be a finite distance >= 0, got {margin!r}")
@@ -111,8 +111,8 @@ def analytic_visibility(
     normals = as_cloud(normals, "normals")
     if normals.shape != samples.shape:
         raise ValueError(f"normals {normals.shape} must match samples {samples.shape}")
-    poses = _as_poses(poses)
-    planes = _frustum_planes(poses, intrinsics, _as_margin(margin))
+    poses = as_poses(poses)
+    planes = frustum_planes(poses, intrinsics, as_margin(margin))
     n_views, n = len(poses), len(samples)
     homog = np.empty((4, n))
     homog[:3] = samples.T
@@ -130,14 +130,14 @@ def analytic_visibility(
 
 
 def _inside(signed: np.ndarray) -> np.ndarray:
-    """Inside all five half-spaces of :func:`_frustum_planes`: ``(..., 5, m)`` -> ``(..., m)``."""
+    """Inside all five half-spaces of :func:`frustum_planes`: ``(..., 5, m)`` -> ``(..., m)``."""
     inside = signed[..., 0, :] > 0.0
     for k in range(1, 5):
         inside &= signed[..., k, :] >= 0.0
     return inside
 
 
-def _affine_at(function: np.ndarray, points: np.ndarray) -> np.ndarray:
+def affine_at(function: np.ndarray, points: np.ndarray) -> np.ndarray:
     """``function[:3] . point + function[3]`` elementwise: ``(4, ...)`` and ``(3, ...)``.
 
     Coefficients and coordinates in rows, because numpy is slow at reducing axes of length 3.
@@ -155,7 +155,7 @@ def _inside_pairs(
     """:func:`_inside` for (view, sample) pairs: ``(m,)`` bool.
 
     Args:
-        planes: ``(V, 5, 4)`` :func:`_frustum_planes`.
+        planes: ``(V, 5, 4)`` :func:`frustum_planes`.
         view_idx: ``(m,)`` view of each pair.
         samples: ``(n, 3)`` points, world units.
         sample_idx: ``(m,)`` sample of each pair.
@@ -163,13 +163,13 @@ def _inside_pairs(
     # Coordinates in rows and one gathered row per coefficient: faster than a (m, 5, 4) gather.
     xyz = np.take(samples.T, sample_idx, axis=1)
     columns = np.ascontiguousarray(planes.transpose(1, 2, 0))  # (5, 4, V)
-    inside = _affine_at(np.take(columns[0], view_idx, axis=1), xyz) > 0.0
+    inside = affine_at(np.take(columns[0], view_idx, axis=1), xyz) > 0.0
     for k in range(1, 5):
-        inside &= _affine_at(np.take(columns[k], view_idx, axis=1), xyz) >= 0.0
+        inside &= affine_at(np.take(columns[k], view_idx, axis=1), xyz) >= 0.0
     return inside
 
 
-def _as_face_ids(face_ids: np.ndarray, hull: ConvexHull, n: int) -> np.ndarray:
+def as_face_ids(face_ids: np.ndarray, hull: ConvexHull, n: int) -> np.ndarray:
     face_ids = np.asarray(face_ids)
     n_faces = len(hull.simplices)
     if face_ids.shape != (n,) or not np.issubdtype(face_ids.dtype, np.integer):
@@ -181,7 +181,7 @@ def _as_face_ids(face_ids: np.ndarray, hull: ConvexHull, n: int) -> np.ndarray:
     return face_ids
 
 
-def _ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+def index_ranges(starts: np.ndarray, lengths: np.ndarray) -> np.ndarray:
     """``concatenate([arange(a, a + k) for a, k in zip(starts, lengths)])``, vectorised."""
     total = int(lengths.sum())
     if total == 0:
@@ -198,7 +198,7 @@ def facing_triangles(hull: ConvexHull, poses: np.ndarray) -> np.ndarray:
 
 def corners_in_image(hull: ConvexHull, planes: np.ndarray) -> np.ndarray:
     """Which of the hull's corners (``hull.vertices``, in that order) each camera's image holds:
-    ``(V, corners)`` bool, for the ``(V, 5, 4)`` half-spaces of :func:`_frustum_planes`."""
+    ``(V, corners)`` bool, for the ``(V, 5, 4)`` half-spaces of :func:`frustum_planes`."""
     signed = planes[..., :3].reshape(-1, 3) @ hull.points[hull.vertices].T
     signed += planes[..., 3].reshape(-1, 1)
     return _inside(signed.reshape(len(planes), 5, -1))
@@ -232,10 +232,10 @@ def analytic_visibility_faces(
         ``(V, n)`` bool.
     """
     samples = as_cloud(samples, "samples")
-    face_ids = _as_face_ids(face_ids, hull, len(samples))
-    poses = _as_poses(poses)
+    face_ids = as_face_ids(face_ids, hull, len(samples))
+    poses = as_poses(poses)
     n_faces = len(hull.simplices)
-    planes = _frustum_planes(poses, intrinsics, _as_margin(margin))  # (V, 5, 4)
+    planes = frustum_planes(poses, intrinsics, as_margin(margin))  # (V, 5, 4)
     # Corners are tested once each: Qhull's vertex list, renumbered.
     renumber = np.empty(len(hull.points), dtype=np.intp)
     renumber[hull.vertices] = np.arange(len(hull.vertices))
@@ -257,7 +257,7 @@ def analytic_visibility_faces(
         # Triangles the image border cuts (or that lie outside it): their samples one by one.
         starts = np.cumsum(counts) - counts
         lengths = counts[cut_face]
-        sample_idx = _ranges(starts[cut_face], lengths)
+        sample_idx = index_ranges(starts[cut_face], lengths)
         if not grouped:
             sample_idx = np.argsort(face_ids, kind="stable")[sample_idx]
         view_idx = np.repeat(cut_view, lengths)

@@ -9,7 +9,7 @@ import numpy as np
 
 from nbv.dataset.records import score_functions
 from nbv.policies.episode import EpisodeState
-from nbv.policies.inputs import _record
+from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
 
 
@@ -37,5 +37,5 @@ class OraclePolicy:
         t0 = time.perf_counter()
         gains, _ = score_functions(state.model, self.score, state.viewspace)
         choice = masked_argmax(gains(state.view_state), state.view_state)
-        _record(self.timings, "gains", time.perf_counter() - t0)
+        record_time(self.timings, "gains", time.perf_counter() - t0)
         return choice

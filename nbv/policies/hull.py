@@ -13,7 +13,7 @@ from nbv.planning.hull import convex_hull
 from nbv.planning.planner import Plan, plan, sph_hull_points
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
-from nbv.policies.inputs import _NO_SPREAD, _cloud_or_origin, _has_spread, _record
+from nbv.policies.inputs import NO_SPREAD, cloud_or_origin, has_spread, record_time
 
 #: Relative thickness given to a cloud whose hull has no volume (see :func:`thicken`).
 THICKEN_RTOL = 1e-3
@@ -92,14 +92,14 @@ class HullSCOPolicy:
         Returns:
             The planned views in order.
         """
-        cloud = np.asarray(_cloud_or_origin(cloud), dtype=np.float64)
+        cloud = np.asarray(cloud_or_origin(cloud), dtype=np.float64)
         t0 = time.perf_counter()
         if self.sph:
-            if _has_spread(cloud):
+            if has_spread(cloud):
                 cloud = sph_hull_points(cloud, self.settings.lmax)
             else:
-                self.notes.append(_NO_SPREAD + "; planned on the cloud itself")
-            _record(self.timings, "signature", time.perf_counter() - t0)
+                self.notes.append(NO_SPREAD + "; planned on the cloud itself")
+            record_time(self.timings, "signature", time.perf_counter() - t0)
 
         def run(points: np.ndarray) -> Plan:
             return plan(
@@ -126,9 +126,9 @@ class HullSCOPolicy:
             else:
                 raise
         t = result.timings
-        _record(self.timings, "hull", t["hull"] + t["sampling"])
-        _record(self.timings, "simulation", t["simulation"])
-        _record(self.timings, "set_cover", t["sets"] + t["greedy"])
+        record_time(self.timings, "hull", t["hull"] + t["sampling"])
+        record_time(self.timings, "simulation", t["simulation"])
+        record_time(self.timings, "set_cover", t["sets"] + t["greedy"])
         return result.views
 
     def _probe_cloud(self, state: EpisodeState) -> np.ndarray:

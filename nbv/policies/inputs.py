@@ -7,27 +7,27 @@ import numpy as np
 from nbv.geometry.sph import signature
 
 
-def _record(timings: dict[str, list[float]], key: str, seconds: float) -> None:
+def record_time(timings: dict[str, list[float]], key: str, seconds: float) -> None:
     timings.setdefault(key, []).append(seconds)
 
 
-def _cloud_or_origin(cloud: np.ndarray) -> np.ndarray:
+def cloud_or_origin(cloud: np.ndarray) -> np.ndarray:
     """The cloud, or the origin as its only point when the views saw nothing (an empty view of
     a flat object seen edge-on): every downstream step needs at least one point."""
     return cloud if len(cloud) else np.zeros((1, 3), dtype=np.float32)
 
 
-_NO_SPREAD = "every point at one place (the views saw nothing): no signature"
+NO_SPREAD = "every point at one place (the views saw nothing): no signature"
 
 
-def _has_spread(cloud: np.ndarray) -> bool:
+def has_spread(cloud: np.ndarray) -> bool:
     """A radius function needs a point away from the centroid."""
     return bool(len(cloud)) and bool(np.ptp(cloud, axis=0).max() > 0)
 
 
-def _signature(cloud: np.ndarray, lmax: int, notes: list[str]) -> np.ndarray:
+def safe_signature(cloud: np.ndarray, lmax: int, notes: list[str]) -> np.ndarray:
     """The spherical signature, or all zeros (every radius 0) for a cloud without spread."""
-    if _has_spread(cloud):
+    if has_spread(cloud):
         return signature(cloud, lmax)
-    notes.append(_NO_SPREAD + "; zeros used")
+    notes.append(NO_SPREAD + "; zeros used")
     return np.zeros((4 * (lmax + 1) ** 2, 3), dtype=np.float32)

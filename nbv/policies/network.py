@@ -10,7 +10,7 @@ import numpy as np
 
 from nbv.geometry.clouds import farthest_points
 from nbv.policies.episode import EpisodeState
-from nbv.policies.inputs import _cloud_or_origin, _record, _signature
+from nbv.policies.inputs import cloud_or_origin, record_time, safe_signature
 
 
 @dataclass
@@ -63,9 +63,9 @@ class NetworkPolicy:
 
     def features(self, cloud: np.ndarray) -> np.ndarray:
         """The network input for a cloud: (n_points, 3) or the (4 (lmax+1)^2, 3) signature."""
-        cloud = _cloud_or_origin(cloud)
+        cloud = cloud_or_origin(cloud)
         if self.input == "signature":
-            return _signature(cloud, self.lmax, self.notes)
+            return safe_signature(cloud, self.lmax, self.notes)
         return farthest_points(cloud, self.n_points)
 
     def decide(
@@ -98,8 +98,8 @@ class NetworkPolicy:
             mask = s if visited is None else torch.from_numpy(np.asarray(visited, bool))[None]
             choice = int(masked_argmax(scores, mask)[0])
         t2 = time.perf_counter()
-        _record(self.timings, "signature" if self.input == "signature" else "sampling", t1 - t0)
-        _record(self.timings, "network", t2 - t1)
+        record_time(self.timings, "signature" if self.input == "signature" else "sampling", t1 - t0)
+        record_time(self.timings, "network", t2 - t1)
         return choice
 
     def __call__(self, state: EpisodeState) -> int:

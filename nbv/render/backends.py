@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics
-from nbv.render.blender import _check_options, render_blender
+from nbv.render.blender import check_options, render_blender
 from nbv.render.job import BACKENDS, RenderError, RenderJob
-from nbv.render.raycast import _render_raycast_stream
+from nbv.render.raycast import render_raycast_stream
 
 
 def render(
@@ -54,11 +54,11 @@ def render(
             f"backend {backend!r} takes options {sorted(allowed)}, got {sorted(set(kw) - allowed)}"
         )
     if backend == "raycast":
-        _check_options(kw.get("threads", 0))
-        return _render_raycast_stream(jobs, intrinsics, kw.get("threads", 0))
+        check_options(kw.get("threads", 0))
+        return render_raycast_stream(jobs, intrinsics, kw.get("threads", 0))
     if workdir is not None:
         return render_blender(jobs, intrinsics, Path(workdir), **kw)
-    _check_options(kw.get("threads", 0), kw.get("device", "CPU"), kw.get("blender"))
+    check_options(kw.get("threads", 0), kw.get("device", "CPU"), kw.get("blender"))
     return _in_temporary_dir(jobs, intrinsics, kw)
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics, opencv_to_blender
-from nbv.render.job import DEVICES, RenderError, RenderJob, _check_mesh
+from nbv.render.job import DEVICES, RenderError, RenderJob, check_mesh
 
 #: The Blender script, run as a subprocess (it imports bpy, never nbv).
 BLENDER_SCRIPT = Path(__file__).resolve().parents[2] / "blender_scripts" / "render_depth.py"
@@ -35,7 +35,7 @@ def _intrinsics_spec(intrinsics: Intrinsics) -> dict:
     }
 
 
-def _check_options(threads: int, device: str = "CPU", blender: str | None = None) -> None:
+def check_options(threads: int, device: str = "CPU", blender: str | None = None) -> None:
     if not isinstance(threads, int | np.integer) or threads < 0:
         raise ValueError(f"threads must be an integer >= 0 (0 = all cores), got {threads!r}")
     if device not in DEVICES:
@@ -89,7 +89,7 @@ def _stage(job: RenderJob, index: int, run_dir: Path) -> _Pending:
     if not isinstance(job.key, str) or not job.key.strip() or len(job.key.splitlines()) != 1:
         raise ValueError(f"key must be a non-empty one-line string, got {job.key!r}")
     vertices, faces, poses = (np.asarray(a) for a in (job.vertices, job.faces, job.poses))
-    _check_mesh(vertices, faces, poses)
+    check_mesh(vertices, faces, poses)
     if not (np.all(np.isfinite(vertices)) and np.all(np.isfinite(poses))):
         raise ValueError("vertices and poses must be finite")
     pending = _Pending(
@@ -134,7 +134,7 @@ def render_blender(
     Raises:
         ValueError: bad ``threads``/``device``; FileNotFoundError: ``blender`` not found.
     """
-    _check_options(threads, device, blender)
+    check_options(threads, device, blender)
     if not BLENDER_SCRIPT.is_file():
         raise FileNotFoundError(f"{BLENDER_SCRIPT} is missing: nbv must run from a checkout")
     workdir = Path(workdir)

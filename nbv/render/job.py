@@ -33,7 +33,7 @@ class RenderJob:
     poses: np.ndarray
 
 
-def _check_mesh(vertices: np.ndarray, faces: np.ndarray, poses: np.ndarray) -> None:
+def check_mesh(vertices: np.ndarray, faces: np.ndarray, poses: np.ndarray) -> None:
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         raise ValueError(f"vertices must be (N, 3), got shape {vertices.shape}")
     if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):

@@ -7,7 +7,7 @@ from collections.abc import Iterable, Iterator
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics, pixel_rays
-from nbv.render.job import RenderError, RenderJob, _check_mesh
+from nbv.render.job import RenderError, RenderJob, check_mesh
 
 
 def render_raycast(
@@ -38,7 +38,7 @@ def render_raycast(
     vertices = np.asarray(vertices)
     faces = np.asarray(faces)
     poses = np.asarray(poses, dtype=np.float64)
-    _check_mesh(vertices, faces, poses)
+    check_mesh(vertices, faces, poses)
     depth = np.full((len(poses), intrinsics.height, intrinsics.width), np.inf, dtype=np.float32)
     if faces.size == 0:
         return depth
@@ -105,7 +105,7 @@ def reachable_pixels(
     return mask[: intrinsics.height, : intrinsics.width]
 
 
-def _render_raycast_stream(
+def render_raycast_stream(
     jobs: Iterable[RenderJob], intrinsics: Intrinsics, threads: int
 ) -> Iterator[tuple[str, np.ndarray | RenderError]]:
     for job in jobs:
