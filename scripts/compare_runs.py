@@ -85,8 +85,8 @@ def compare_ckpt(before: Path, after: Path) -> list[str]:
 
 def compare_results(before: Path, after: Path) -> list[str]:
     """Differences between the episodes (views, coverage, VIG, AUC) of two results.json."""
-    fields = ("dataset", "viewspace", "method", "check", "key", "category", "start", "views", "coverage",
-              "vig", "auc")  # fmt: skip
+    fields = ("dataset", "viewspace", "method", "check", "key", "category", "start", "views",
+              "coverage", "vig", "auc")  # fmt: skip
     b = json.loads(before.read_text())["episodes"]
     a = json.loads(after.read_text())["episodes"]
     if len(b) != len(a):

@@ -16,8 +16,8 @@ K = Intrinsics()
 
 
 def _brute_force_visibility(samples, normals, poses, intrinsics, margin=0.0) -> np.ndarray:
-    """Per view with nbv.geometry.camera.project: facing the camera and inside the image; with a margin,
-    within ``margin`` (world units) of each plane through the camera centre and an image
+    """Per view with nbv.geometry.camera.project: facing the camera and inside the image; with a
+    margin, within ``margin`` (world units) of each plane through the camera centre and an image
     border."""
     k = intrinsics
     seen = np.zeros((len(poses), len(samples)), dtype=bool)

@@ -1,4 +1,6 @@
-"""Catalogues of the mesh datasets as the user has them on disk: ShapeNetCore v1/v2, Stanford, BOP (Linemod, HomebrewDB) and any folder."""
+"""Catalogues of mesh datasets as the user has them on disk.
+
+ShapeNetCore v1/v2, Stanford, BOP (Linemod, HomebrewDB) and any folder of meshes."""
 
 from __future__ import annotations
 

@@ -3,8 +3,8 @@
 ``python -m nbv.bench.render [--views 33] [--threads 2] [--meshes DIR | --no-meshes]`` renders
 a 50k-triangle mesh (and every OBJ of ``--meshes``, by default ``../shared/meshes`` beside the
 checkout when it exists) at 640 x 480 from the original viewspace with both backends,
-back-projects every view (:func:`nbv.geometry.camera.backproject`), checks that the backends agree and
-prints a table.
+back-projects every view (:func:`nbv.geometry.camera.backproject`), checks that the backends agree
+and prints a table.
 
 Blender's time a view is measured in steady state: the process first renders one view of the
 mesh (start-up, scene set-up), and the clock runs from that mesh's result to the result of the

@@ -1,4 +1,6 @@
-"""In-memory records of a dataset's models: plain arrays, no HDF5, so that algorithms can take them."""
+"""In-memory records of a dataset's models: plain arrays, no HDF5.
+
+Algorithms (episodes, policies, scores) take these, never the storage code."""
 
 from __future__ import annotations
 
@@ -40,7 +42,8 @@ class ViewData:
         return self.points[self.offsets[v] : self.offsets[v + 1]]
 
     def view_hulls(self) -> list[np.ndarray]:
-        """Every view's (K_v, 3) hull vertices, float64 (for :func:`nbv.geometry.scores.vig_of_state`)."""
+        """Every view's (K_v, 3) hull vertices, float64 (for
+        :func:`nbv.geometry.scores.vig_of_state`)."""
         h, o = self.hull_points.astype(np.float64), self.hull_offsets
         return [h[o[v] : o[v + 1]] for v in range(len(o) - 1)]
 

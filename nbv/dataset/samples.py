@@ -9,7 +9,8 @@ that the samples also hold states the oracle would not visit. Before each pick a
   ``n_points`` points,
 * ``view_state``: (V,) bool, the visited views,
 * ``target``: (V,) the gain each view would add to the score (0 for visited views),
-* ``signature``: the spherical-harmonics signature (:func:`nbv.geometry.sph.signature`) of the accumulated
+* ``signature``: the spherical-harmonics signature (:func:`nbv.geometry.sph.signature`) of the
+accumulated
   cloud at ``lmax``,
 * ``value``: the score of the state itself.
 

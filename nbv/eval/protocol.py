@@ -34,7 +34,7 @@ class EpisodeRecord:
         auc: PC-NBV's AUC of the coverage curve.
         decision_times: seconds of each call of the policy.
         timings: seconds per stage, summed over the episode's decisions (see
-            :mod:`nbv.policies.policies`), plus ``total`` (all decision times) and ``online`` (total
+            :mod:`nbv.policies`), plus ``total`` (all decision times) and ``online`` (total
             without the view simulation, the paper's "online" time).
         notes: what the policy had to work around.
     """

@@ -1,4 +1,6 @@
-"""Means over episodes and the Markdown tables of the report: by method, view, category and paired."""
+"""Means over episodes and the Markdown tables of the report.
+
+By method, by view, by category, and paired differences between two methods."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """The timing table (the paper's Table 1): seconds per reconstruction, by stage and method.
 
 A reconstruction is one episode: the decisions that pick its views after the start view (9 with
-the default protocol; one plan for a one-shot planner). Stages (see :mod:`nbv.policies.policies`):
+the default protocol; one plan for a one-shot planner). Stages (see :mod:`nbv.policies`):
 
 * ``sampling``: farthest point sampling of the accumulated cloud (PCNBV's input);
 * ``signature``: the spherical signature (PCNBV-sph's input, hull_sco_sph's hull points);

@@ -1,15 +1,15 @@
 """Dilation of analytic view sets by ``eps``: unseen hull samples within ``eps`` of a view's points.
 
-The ``"analytic"`` view simulation of :func:`nbv.planning.sco.view_sets` starts from the visible sets
-(:mod:`nbv.planning.visibility`). The ray-cast sets it stands for hold every hull sample within ``eps`` of
-a point the view captures, so with ``dilate=True`` the visible sets are dilated
-(:func:`dilate_view_sets`): samples the view does not see but that lie within ``eps`` of a point
-it captures, just behind the silhouette or just outside the image are added. Those lie within
-``eps`` of a triangle facing the camera (found once per hull, :func:`near_triangles`), and
-whether a pixel's ray hits that triangle within ``eps`` of the sample is solved exactly (the
-pixels that do fill an ellipse in the image, :func:`_pixel_capture`): a purely geometric "within
-``eps`` of the facing surface" would overshoot, as near a silhouette that surface is seen edge-on
-and its pixels' points lie far apart.
+The ``"analytic"`` view simulation of :func:`nbv.planning.view_sets.view_sets` starts from the
+visible sets (:mod:`nbv.planning.visibility`). The ray-cast sets it stands for hold every hull
+sample within ``eps`` of a point the view captures, so with ``dilate=True`` the visible sets are
+dilated (:func:`dilate_view_sets`): samples the view does not see but that lie within ``eps`` of a
+point it captures, just behind the silhouette or just outside the image are added. Those lie within
+``eps`` of a triangle facing the camera (found once per hull, :func:`near_triangles`), and whether a
+pixel's ray hits that triangle within ``eps`` of the sample is solved exactly (the pixels that do
+fill an ellipse in the image, :func:`_pixel_capture`): a purely geometric "within ``eps`` of the
+facing surface" would overshoot, as near a silhouette that surface is seen edge-on and its pixels'
+points lie far apart.
 
 The dilated sets and the ray-cast sets then differ in one way only: a sample on a face seen so
 obliquely that the pixels' points on it lie farther apart than ``eps`` is kept by the analytic
@@ -24,7 +24,7 @@ between the triangles of the float32 render (under 0.1 % of pairs).
 The price is time: a whole 9-view plan takes about 25 ms with the dilation and 6 ms without, and
 on hulls of thousands of small triangles (the merged clouds of replanning) the view simulation
 goes from 11 ms to 350 ms. Planning therefore dilates only when asked (``dilate=True`` of
-:func:`nbv.planning.sco.plan`).
+:func:`nbv.planning.planner.plan`).
 
 Distances are in world units; poses are camera-to-world, OpenCV convention.
 """
@@ -382,16 +382,16 @@ def _pixel_capture(
 
     For triples (view, sample, hull triangle facing the view). A pixel centre ``x = (u, v)``,
     integers in ``[0, W - 1] x [0, H - 1]``, casts the ray ``s m(x)`` (camera frame,
-    ``m(x) = ((u - cx) / fx, (v - cy) / fy, 1)``, as :func:`nbv.render.backends.render_raycast` does).
-    On a convex hull it first hits the facing triangle whose projection holds ``x`` (three
+    ``m(x) = ((u - cx) / fx, (v - cy) / fy, 1)``, as :func:`nbv.render.raycast.render_raycast`
+    does). On a convex hull it first hits the facing triangle whose projection holds ``x`` (three
     linear inequalities in ``x``), where it meets that triangle's plane ``n . y + h = 0``. That
-    point lies within ``eps`` of the sample ``y`` (camera frame) iff
-    ``|h m(x) + (n . m(x)) y| <= eps |n . m(x)|``: both sides are affine in ``x``, so the
-    pixels that pass lie inside a conic, an ellipse for any triangle not seen almost exactly
-    edge-on. The rows (or columns, whichever are fewer) that cross the ellipse are tried from
-    its centre outwards: one passes when an integer lies inside the ellipse, the image and
-    the triangle's projection on it. Exact up to rounding; a triangle whose conic is not an
-    ellipse (the camera within about ``eps`` of its plane) is taken to show no pixel.
+    point lies within ``eps`` of the sample ``y`` (camera frame) iff ``|h m(x) + (n . m(x)) y| <=
+    eps |n . m(x)|``: both sides are affine in ``x``, so the pixels that pass lie inside a conic, an
+    ellipse for any triangle not seen almost exactly edge-on. The rows (or columns, whichever are
+    fewer) that cross the ellipse are tried from its centre outwards: one passes when an integer
+    lies inside the ellipse, the image and the triangle's projection on it. Exact up to rounding; a
+    triangle whose conic is not an ellipse (the camera within about ``eps`` of its plane) is taken
+    to show no pixel.
 
     Args:
         samples: ``(n, 3)`` hull samples, world units.
@@ -547,19 +547,20 @@ def dilate_view_sets(
     """Add to each view's visible set the samples its pixels' points come within ``eps`` of.
 
     Two kinds of samples a view does not see lie within ``eps = near.eps`` of the points a
-    ray-cast view of the hull captures (:func:`nbv.planning.sco.raycast_view_sets`): samples just behind
-    its silhouette, on a triangle turned away but within ``eps`` of one facing the camera
-    (:func:`near_triangles`), and samples on facing triangles just outside the image, within
+    ray-cast view of the hull captures (:func:`nbv.planning.view_sets.raycast_view_sets`): samples
+    just behind its silhouette, on a triangle turned away but within ``eps`` of one facing the
+    camera (:func:`near_triangles`), and samples on facing triangles just outside the image, within
     ``eps`` of its border planes (:func:`nbv.planning.visibility.analytic_visibility_faces` with
-    ``margin=eps``). Being within ``eps`` of the facing surface is not enough: near a
-    silhouette that surface is seen nearly edge-on and the pixels' points on it lie far apart.
-    So each such sample is tested against the pixels themselves: it is added when the ray of
-    some pixel centre hits a nearby facing triangle (its own included) within ``eps`` of it,
-    solved exactly per triangle without rendering (the pixels whose hit lies within ``eps``
-    fill an ellipse in the image).
+    ``margin=eps``). Being within ``eps`` of the facing surface is not enough: near a silhouette
+    that surface is seen nearly edge-on and the pixels' points on it lie far apart. So each such
+    sample is tested against the pixels themselves: it is added when the ray of some pixel centre
+    hits a nearby facing triangle (its own included) within ``eps`` of it, solved exactly per
+    triangle without rendering (the pixels whose hit lies within ``eps`` fill an ellipse in the
+    image).
 
     Args:
-        seen: ``(V, n)`` bool visible sets (:func:`nbv.planning.visibility.analytic_visibility_faces`,
+        seen: ``(V, n)`` bool visible sets
+        (:func:`nbv.planning.visibility.analytic_visibility_faces`,
             no margin); not modified.
         samples: ``(n, 3)`` hull samples, world units.
         face_ids: ``(n,)`` index into ``hull.simplices`` of each sample's triangle.

@@ -155,8 +155,8 @@ def sph_hull_points(points: np.ndarray, lmax: int = 3) -> np.ndarray:
         lmax: maximum harmonic degree (the paper's 3).
 
     Returns:
-        ``(4 (lmax + 1)^2, 3)`` float64 points: :func:`nbv.geometry.sph.signature_with_centroid` shifted
-        by the centroid.
+        ``(4 (lmax + 1)^2, 3)`` float64 points: :func:`nbv.geometry.sph.signature_with_centroid`
+        shifted by the centroid.
     """
     signature, centroid = signature_with_centroid(as_cloud(points, "points"), lmax)
     return signature.astype(np.float64) + centroid
@@ -177,7 +177,8 @@ def plan_sph(
 
     Same as :func:`plan` (``settings.dilate`` included: off by default, see there for its cost),
     but the hull is that of :func:`sph_hull_points` (the signature of degree ``settings.lmax``
-    placed at the cloud's centroid) instead of the cloud's own. ``timings`` gets a ``signature`` entry too.
+    placed at the cloud's centroid) instead of the cloud's own. ``timings`` gets a ``signature``
+    entry too.
     """
     t0 = time.perf_counter()
     signature = sph_hull_points(points, settings.lmax)

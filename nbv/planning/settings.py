@@ -1,4 +1,4 @@
-"""The convex-hull planner's settings: one dataclass for the planner, the policies and the configs."""
+"""The convex-hull planner's settings: one dataclass for the planner, policies and configs."""
 
 from __future__ import annotations
 

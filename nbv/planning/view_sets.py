@@ -32,7 +32,7 @@ def raycast_view_sets(
 ) -> np.ndarray:
     """Which hull samples each view captures, by rendering the hull like the dataset does.
 
-    Each view's depth (:func:`nbv.render.backends.render_raycast`, one ray a pixel centre) is
+    Each view's depth (:func:`nbv.render.raycast.render_raycast`, one ray a pixel centre) is
     back-projected to a cloud; a sample is captured when a point of that cloud lies closer than
     ``eps`` (:func:`nbv.geometry.scores.covered_mask`). ``eps`` must exceed about half the distance
     between neighbouring pixels' points on the surface, or frontal faces get holes: at 640 x 480,
@@ -81,10 +81,10 @@ def view_sets(
       (:func:`nbv.planning.visibility.analytic_visibility`): the exact visible part of the hull.
     * ``dilate=True``: those, plus the samples it does not see that lie within ``eps`` of a
       pixel's point: just behind the silhouette or just outside the image
-      (:func:`nbv.planning.dilation.near_triangles`, :func:`nbv.planning.dilation.dilate_view_sets`, exact per
-      pixel). The one remaining difference from ``"raycast"``: a sample on a face seen so
-      obliquely that its pixels' points lie farther apart than ``eps`` is kept, though no
-      point may come that close. See :mod:`nbv.planning.dilation` for the measured agreement.
+      (:func:`nbv.planning.dilation.near_triangles`, :func:`nbv.planning.dilation.dilate_view_sets`,
+      exact per pixel). The one remaining difference from ``"raycast"``: a sample on a face seen so
+      obliquely that its pixels' points lie farther apart than ``eps`` is kept, though no point may
+      come that close. See :mod:`nbv.planning.dilation` for the measured agreement.
 
     Args:
         samples: ``(n, 3)`` points on the hull (:func:`sample_hull`), world units.
@@ -98,8 +98,8 @@ def view_sets(
         hull: the hull (``ConvexHull``, or ``(vertices, faces)`` for ``"raycast"``).
         face_ids: ``(n,)`` triangle of each sample (:func:`sample_hull`). With a ``ConvexHull``
             ``hull``, the analytic path decides whole triangles at once
-            (:func:`nbv.planning.visibility.analytic_visibility_faces`); otherwise each sample on its own
-            (:func:`nbv.planning.visibility.analytic_visibility`). Both give the same sets.
+            (:func:`nbv.planning.visibility.analytic_visibility_faces`); otherwise each sample on
+            its own (:func:`nbv.planning.visibility.analytic_visibility`). Both give the same sets.
         dilate: analytic path only: dilate the visible sets by ``eps``. It needs ``hull`` as a
             ``ConvexHull`` and ``face_ids`` (the dilation works on the triangles). Closer to
             ``"raycast"`` but slower, see :func:`plan`. ``False`` (default): the visible sets.

@@ -1,4 +1,4 @@
-"""Convex-hull set cover as a policy: one-shot from the start view, or replanned after every view."""
+"""Convex-hull set cover as a policy: one-shot from the start view, or replanned every view."""
 
 from __future__ import annotations
 
@@ -45,7 +45,8 @@ class HullSCOPolicy:
     """Convex-hull set cover, one-shot (the paper's Algorithms 2 and 3).
 
     On the first call, with ``probes == 0``: plan every remaining view from the start view's
-    cloud (:func:`nbv.planning.sco.plan`, or :func:`nbv.planning.sco.plan_sph` with ``sph``), excluding the
+    cloud (:func:`nbv.planning.planner.plan`, or :func:`nbv.planning.planner.plan_sph` with
+    ``sph``), excluding the
     visited views, and return the plan; the episode takes it in order. With ``probes = k``:
     first return ``k`` seeded random unvisited views (they count in the episode); on the next
     call plan from the start view's cloud plus ``probe_points`` random points of each probe

@@ -1,4 +1,5 @@
-"""What a policy computes from the captured views: the cloud, its signature, and the time each stage took."""
+"""What a policy computes from the captured views: the cloud and its signature, with the
+seconds each stage took."""
 
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """Depth rendering of meshes: Blender Cycles (the default) or Open3D ray casting.
 
-Both backends share the camera model of :mod:`nbv.geometry.camera` and return planar depth, ``inf`` for
+Both backends share the camera model of :mod:`nbv.geometry.camera` and return planar depth, ``inf``
+for
 background, as (V, H, W) float32 arrays, one per mesh:
 
 * ``"blender"`` runs ``blender_scripts/render_depth.py`` in ONE subprocess (the bpy wheel, or a

@@ -1,4 +1,5 @@
-"""The Blender driver: a stream of meshes rendered by ``blender_scripts/render_depth.py`` in one subprocess."""
+"""The Blender driver: a stream of meshes rendered by ``blender_scripts/render_depth.py`` in
+one subprocess."""
 
 from __future__ import annotations
 

@@ -24,7 +24,8 @@ class RenderJob:
         key: unique name of the mesh in the stream (echoed back with its depth).
         vertices: (N, 3) float vertex positions, world units.
         faces: (F, 3) integer vertex indices of triangles.
-        poses: (V, 4, 4) camera-to-world matrices in the OpenCV convention of :mod:`nbv.geometry.camera`.
+        poses: (V, 4, 4) camera-to-world matrices in the OpenCV convention of
+        :mod:`nbv.geometry.camera`.
     """
 
     key: str

@@ -20,8 +20,8 @@ def render_raycast(
 ) -> np.ndarray:
     """Planar depth images of a triangle mesh by ray casting (Open3D / Embree).
 
-    Rays go through the pixel centres of :func:`nbv.geometry.camera.pixel_rays` with unit camera-z, so the
-    hit distance along the unnormalised ray is the planar depth.
+    Rays go through the pixel centres of :func:`nbv.geometry.camera.pixel_rays` with unit camera-z,
+    so the hit distance along the unnormalised ray is the planar depth.
 
     Args:
         vertices: (N, 3) vertex positions, world units.
