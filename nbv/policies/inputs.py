@@ -9,6 +9,7 @@ from nbv.geometry.sph import signature
 
 
 def record_time(timings: dict[str, list[float]], key: str, seconds: float) -> None:
+    """Add one decision's ``seconds`` of stage ``key`` to a policy's ``timings``."""
     timings.setdefault(key, []).append(seconds)
 
 

@@ -1,1 +1,7 @@
-"""Helpers every layer may use: crash-safe writes, generators derived from names, bit counts."""
+"""Helpers every layer may use (standard library and numpy only).
+
+* :mod:`~nbv.utils.atomic`: crash-safe writes (temporary file, fsync, rename) and durable logs.
+* :mod:`~nbv.utils.seeding`: generators derived from a seed and names (CRC-32).
+* :mod:`~nbv.utils.bits`: popcount of packed bit arrays.
+* :mod:`~nbv.utils.selection`: the best unvisited view (masked argmax).
+"""
