@@ -49,7 +49,9 @@ def _equal(a: object, b: object) -> bool:
         except (ValueError, TypeError):
             return a == b
     a, b = np.asarray(a), np.asarray(b)
-    return a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
+    if a.shape != b.shape or a.dtype != b.dtype:
+        return False
+    return bool(np.array_equal(a, b, equal_nan=a.dtype.kind in "fc"))
 
 
 def compare_h5(before: Path, after: Path) -> list[str]:
