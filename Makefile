@@ -21,6 +21,7 @@ dataset: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest -q $(ARGS)
 
+# Settings as key=value (conf/bench.yaml), e.g. make bench ARGS="network=false render=false".
 bench: $(STAMP)
 	$(PY) -m nbv.bench $(ARGS)
 

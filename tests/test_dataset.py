@@ -16,7 +16,8 @@ import trimesh
 from datagen import SMALL_CAMERA, small_settings
 
 import nbv.dataset
-from nbv.dataset.generate import ConfigError, exit_status, generate, view_data
+from nbv.dataset.config import ConfigError
+from nbv.dataset.generate import exit_status, generate, view_data
 from nbv.dataset.show import main as show_main
 from nbv.geometry.camera import backproject, look_at, viewspace_poses
 from nbv.geometry.viewspace import original_viewspace
@@ -153,6 +154,7 @@ def test_nothing_produced_is_an_error_status(tmp_path):
         (dict(shard=2, num_shards=2), "shard"),
         (dict(backend="povray"), "renderer.backend"),
         (dict(eps=0.0), "eps"),
+        (dict(source="thingiverse"), "source='thingiverse': must be one of synthetic"),
     ],
 )
 def test_bad_settings_name_the_key(tmp_path, bad, message):

@@ -17,10 +17,8 @@ from datagen import SMALL_CAMERA, write_meshes
 from test_policies import make_tiny_dataset, save_tiny_checkpoint
 
 from nbv.eval.config import (
-    METHODS,
     EvalConfigError,
     EvalSettings,
-    HullSettings,
     PrepareSettings,
     settings_from_config,
 )
@@ -56,7 +54,7 @@ def tiny_settings(tiny: dict[str, Path], out: Path, **kw) -> EvalSettings:
         start_views=STARTS,
         disturb_start_views=(24,),
         checkpoints={"pcnbv": str(tiny["pcnbv"]), "pcnbv_sph": str(tiny["pcnbv_sph"])},
-        hull=HullSettings(n_samp=2048),
+        hull=PlannerSettings(n_samp=2048),
         progress=False,
     )
     base.update(kw)
@@ -244,10 +242,16 @@ def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_pa
         (dict(dataset="meshes"), "mesh_dir"),
         (dict(disturb={"checks": ["noise"], "viewspace": ["original"], "radius": 0.5}),
          "disturb.checks: unknown 'noise'"),
-        (dict(hull={"simulation": "guess"}), "hull.simulation: unknown 'guess'"),
-        (dict(hull={"dilate": "yes"}), "hull.dilate='yes': must be true or false"),
+        (dict(hull={"simulation": "guess"}),
+         "hull.simulation='guess': must be one of analytic, raycast"),
+        # OmegaConf reads yes/no/on/off as booleans; anything else is refused.
+        (dict(hull={"dilate": "maybe"}), "hull.dilate='maybe': must be true or false"),
         (dict(n_views=1), "n_views=1"),
-        (dict(colour="red"), "unknown keys ['colour']"),
+        (dict(seed="abc"), "seed='abc': must be an integer"),
+        (dict(colour="red"), "colour: unknown key; allowed: run, out_root, methods"),
+        (dict(hull={"radius": 2}), "hull.radius: unknown key; allowed: n_samp, simulation"),
+        (dict(start_views=[24, 40]),
+         "start_views=[40]: the viewspace 'original' has 33 views (indices 0..32)"),
         (dict(checkpoints={"pcnbv": "a.pt", "dqn": "b.pt"}), "checkpoints: unknown ['dqn']"),
     ],
 )  # fmt: skip
@@ -258,8 +262,12 @@ def test_bad_config_is_refused(override, message):
         cfg = compose("eval", overrides=["run=x"])
     from omegaconf import OmegaConf
 
-    c = OmegaConf.to_container(cfg)
-    c.update(override)
+    c = OmegaConf.to_container(cfg, resolve=True)
+    for key, value in override.items():  # a section's keys replace those keys only
+        if isinstance(value, dict) and isinstance(c.get(key), dict):
+            c[key] = {**c[key], **value}
+        else:
+            c[key] = value
     with pytest.raises(EvalConfigError) as err:
         settings_from_config(c)
     assert message in str(err.value)
@@ -271,7 +279,7 @@ def test_default_config_composes_to_the_documented_defaults():
     with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
         cfg = compose("eval", overrides=["run=x"])
     s = settings_from_config(cfg)
-    assert s.methods == METHODS and s.datasets == ("unseen",)
+    assert s.methods == tuple(METHODS_BY_NAME) and s.datasets == ("unseen",)
     assert s.viewspaces == ("original", "permuted") and s.start_views == (
         1,
         3,
@@ -286,7 +294,7 @@ def test_default_config_composes_to_the_documented_defaults():
     assert s.checkpoints["pcnbv"] == "outputs/train/pcnbv_coverage_fold0/best.pt"
     assert s.checkpoints["pcnbv_sph"] == "outputs/train/pcnbv_sph_coverage_fold0/best.pt"
     assert s.check_start_views == (1, 10, 24)
-    assert s.hull == HullSettings() and s.hull.dilate is False
+    assert s.hull == PlannerSettings() and s.hull.dilate is False
     assert compose_with(["hull.dilate=true"]).hull.dilate is True
     with_meshes = compose_with(["mesh_dir=" + str(ROOT / "tests")])
     assert with_meshes.datasets == ("unseen", "meshes")
@@ -302,7 +310,10 @@ def compose_with(overrides: list[str]) -> EvalSettings:
 def test_missing_dataset_and_bad_start_view_stop_before_any_episode(tiny, tmp_path):
     with pytest.raises(EvalDataError, match="make dataset"):
         evaluate(tiny_settings(tiny, tmp_path, data_dir=tmp_path / "none"))
-    with pytest.raises(EvalDataError, match=r"start_views \[40\]"):
+    # Refused with the settings, before any dataset is opened: the viewspace has 33 views.
+    with pytest.raises(
+        EvalConfigError, match=r"start_views=\[40\]: the viewspace 'original' has 33"
+    ):
         evaluate(tiny_settings(tiny, tmp_path, start_views=(24, 40)))
     with pytest.raises(EvalDataError, match="8 training categories"):
         evaluate(tiny_settings(tiny, tmp_path, datasets=("test",)))
@@ -316,6 +327,7 @@ def test_cli_refuses_a_bad_method_with_one_line(tmp_path):
     assert done.returncode == 2
     assert "methods: unknown 'magic'; allowed: random, oracle, pcnbv" in done.stderr
     assert not list(tmp_path.rglob("results.json"))
+    assert not list(tmp_path.iterdir())  # not even hydra's run folder
 
 
 def test_settings_are_replaceable_and_validated_on_replace(tiny, tmp_path):

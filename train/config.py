@@ -1,20 +1,54 @@
-"""The training settings, validated from the hydra config (``conf/train.yaml``)."""
+"""The training settings: the schema of ``conf/train.yaml`` and the settings built from it.
+
+:class:`TrainConfig` is registered as ``train_schema``, the first entry of the config's defaults
+list: hydra refuses an unknown key or a value of the wrong type while composing. The ``model.net``
+keys are the fields of :class:`nbv.models.config.PCNBVConfig` (but ``n_views``, which comes from
+the dataset). :class:`TrainSettings` keeps the checks of ranges and of fields that go together.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from omegaconf import MISSING
+
 from nbv.assets.categories import TRAIN_CATEGORIES
+from nbv.config.schema import (
+    ConfigError,
+    PathsConfig,
+    ProtocolConfig,
+    check_views,
+    register,
+    schema_of,
+    validated,
+)
+from nbv.dataset.reader import SHARD_GLOB
+from nbv.geometry.viewspace import get_viewspace
+from nbv.models.config import PCNBVConfig
 from nbv.models.precision import PRECISIONS
 
 SCORES = ("coverage", "vig")
 INPUTS = ("points", "signature")
 DEVICES = ("auto", "cpu", "cuda")
 
+#: The error of a setting that cannot be used (one class for every entry point).
+TrainConfigError = ConfigError
 
-class TrainConfigError(ValueError):
-    """A setting that cannot be used; the message names the key and what is allowed."""
+
+def validation_views(dataset: Path) -> int:
+    """Views of the viewspace the validation episodes run on: the ``original`` viewspace of the
+    dataset's first shard when it can be read, else the 33 of PC-NBV's original viewspace."""
+    import h5py
+
+    shards = sorted(Path(dataset).glob(SHARD_GLOB)) if Path(dataset).is_dir() else []
+    for shard in shards[:1]:
+        try:
+            with h5py.File(shard, "r") as handle:
+                return len(handle["viewspaces/original"])
+        except (OSError, KeyError):
+            pass
+    return len(get_viewspace("original"))
 
 
 @dataclass(frozen=True)
@@ -64,6 +98,7 @@ class TrainSettings:
             if not ok:
                 value = getattr(self, key.split(".")[-1])
                 raise TrainConfigError(f"{key}={value!r}: must be {allowed}")
+        check_views("start_views", self.start_views, "original", validation_views(self.dataset))
 
     @property
     def held_out(self) -> str:
@@ -71,23 +106,75 @@ class TrainSettings:
         return self.categories[self.fold]
 
 
-def settings_from_config(cfg) -> TrainSettings:
-    """Build :class:`TrainSettings` from the composed hydra config."""
-    from omegaconf import OmegaConf
+# The schema of conf/train.yaml: which keys exist and their types (the values are there).
 
-    c = OmegaConf.to_container(cfg, resolve=True)
-    c.pop("hydra", None)
+#: ``model.net``: the fields of PCNBVConfig; a null (or absent) one keeps PCNBVConfig's default.
+NetConfig = schema_of(PCNBVConfig, "NetConfig", optional=True, exclude=("n_views",))
+
+
+@dataclass
+class ModelConfig:
+    """``conf/model/``: the network's name, its input (``points`` or ``signature``), its sizes."""
+
+    name: str = MISSING
+    input: str = MISSING
+    net: NetConfig = field(default_factory=NetConfig)
+
+
+@dataclass
+class ScoreConfig:
+    """``conf/score/``: the targets the network learns (``coverage`` or ``vig``)."""
+
+    name: str = MISSING
+
+
+@dataclass
+class TrainConfig:
+    """``conf/train.yaml``."""
+
+    dataset: str = MISSING
+    fold: int = MISSING
+    seed: int = MISSING
+    epochs: int = MISSING
+    batch_size: int = MISSING
+    lr: float = MISSING
+    lr_decay: float = MISSING
+    lr_step_epochs: int = MISSING
+    l2: float = MISSING
+    train_points: int = MISSING
+    eval_points: int = MISSING
+    precision: str = MISSING
+    eval_every: int = MISSING
+    start_views: list[int] = MISSING
+    device: str = MISSING
+    threads: int = MISSING
+    progress: bool = MISSING
+    out_dir: str = MISSING
+    score: ScoreConfig = field(default_factory=ScoreConfig)
+    model: ModelConfig = field(default_factory=ModelConfig)
+    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
+    paths: PathsConfig = field(default_factory=PathsConfig)
+
+
+register("train_schema", TrainConfig)
+
+
+def settings_from_config(cfg) -> TrainSettings:
+    """Build :class:`TrainSettings` from the composed hydra config.
+
+    Raises:
+        ConfigError: an unknown key, a value of the wrong type or out of range (the message
+            names the key).
+    """
+    c = validated(TrainConfig, cfg)
     model, score = c.pop("model"), c.pop("score")
-    known = set(TrainSettings.__dataclass_fields__) - {"score", "model_name", "input", "net"}
-    unknown = sorted(set(c) - known)
-    if unknown:
-        raise TrainConfigError(f"unknown keys {unknown}; allowed: {sorted(known)}")
+    del c["protocol"], c["paths"]
     c["dataset"], c["out_dir"] = Path(c["dataset"]), Path(c["out_dir"])
-    c["start_views"] = tuple(c.get("start_views", ()))
+    c["start_views"] = tuple(c["start_views"])
     return TrainSettings(
         **c,
         score=score["name"],
         model_name=model["name"],
-        input=model.get("input", "points"),
-        net=dict(model.get("net", {})),
+        input=model["input"],
+        net={k: v for k, v in model["net"].items() if v is not None},
     )

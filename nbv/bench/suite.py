@@ -1,19 +1,19 @@
-"""``python -m nbv.bench`` (``make bench``): one table of the fast paths against plain references.
+"""The benchmark suite of ``python -m nbv.bench`` (``make bench``; the command is
+:mod:`nbv.bench.__main__`, its settings ``conf/bench.yaml``): one table of the fast paths against
+plain references.
 
 Every row times the project's implementation and an independent, plain implementation of the same
 thing on the same data in the same run, and gives the ratio. The data: a synthetic chair rendered
 by ray casting from the 33 original views at 640 x 480 (full-resolution view clouds), its
 16384-point ground truth, and a 100k-point cloud from its views. A PCNBV inference episode on those
-views follows (``--no-network`` skips it; trained weights from ``--checkpoint``, by default fold
-0's ``best.pt`` when it exists), and the last rows compare the two rendering backends
-(``--no-render`` skips them).
+views follows (``network=false`` skips it; trained weights from ``checkpoint=...``, by default
+fold 0's ``best.pt`` when it exists), and the last rows compare the two rendering backends
+(``render=false`` skips them).
 
 Targets (issues 3, 4 and 5) are printed beside the measured times; the paper's are in FACTS.md."""
 
 from __future__ import annotations
 
-import argparse
-import json
 from pathlib import Path
 
 import numpy as np
@@ -41,9 +41,6 @@ from nbv.planning.set_cover import greedy_max_coverage
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets
 from nbv.render.raycast import render_raycast
-
-#: The checkpoint of ``python -m train fold=0``, timed by the episode row when it exists.
-FOLD0_CHECKPOINT = Path("outputs/train/pcnbv_coverage_fold0/best.pt")
 
 
 def numpy_fps(points: np.ndarray, n: int, start: int = 0) -> np.ndarray:
@@ -332,45 +329,3 @@ def format_table(rows: list[dict]) -> str:
             f"{r['ratio']:.1f}x | {target} | {met} | {r['note']} |"
         )
     return "\n".join(lines)
-
-
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description="Speed of the fast paths against references.")
-    parser.add_argument("--no-render", action="store_true", help="skip the rendering rows")
-    parser.add_argument("--no-network", action="store_true", help="skip the PCNBV episode row")
-    parser.add_argument(
-        "--checkpoint",
-        type=Path,
-        default=None,
-        help=f"trained PCNBV checkpoint for the episode row (default: {FOLD0_CHECKPOINT} when "
-        "it exists, else untrained weights)",
-    )
-    parser.add_argument("--json", type=Path, default=None, help="also write the rows as JSON")
-    parser.add_argument(
-        "--dataset",
-        type=Path,
-        default=Path("data/generated/synthetic"),
-        help="dataset for the 512-point ground-truth hull check (skipped when absent)",
-    )
-    args = parser.parse_args(argv)
-    checkpoint = args.checkpoint
-    if checkpoint is None:
-        checkpoint = FOLD0_CHECKPOINT if FOLD0_CHECKPOINT.exists() else None
-    elif not checkpoint.is_file():
-        parser.error(f"--checkpoint {checkpoint}: no such file (a best.pt of python -m train)")
-    rows = run(render=not args.no_render, network=not args.no_network, checkpoint=checkpoint)
-    print(format_table(rows))
-    if args.dataset.exists():
-        e = small_gt_hull_error(args.dataset)
-        print(
-            f"\nHull volume of a 512-point ground truth vs 16384 points ({e['models']} models of "
-            f"{args.dataset}): {100 * e['mean']:.1f}% smaller on average (median "
-            f"{100 * e['median']:.1f}%, worst {100 * e['worst']:.1f}%)."
-        )
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(rows, indent=1))
-
-
-if __name__ == "__main__":
-    main()

@@ -16,10 +16,10 @@ and resumed run writes the same arrays as an uninterrupted one.
 from __future__ import annotations
 
 import json
+import logging
 import shutil
-import sys
 import tempfile
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
@@ -27,6 +27,7 @@ import numpy as np
 from tqdm import tqdm
 
 from nbv.assets.meshes import MeshError, sample_surface
+from nbv.dataset.config import ConfigError, Settings
 from nbv.dataset.records import ModelData, ViewData
 from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
 from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
@@ -38,79 +39,7 @@ from nbv.geometry.viewspace import get_viewspace
 from nbv.render.backends import render
 from nbv.render.job import RenderError, RenderJob
 
-BACKENDS = ("blender", "raycast")
-
-
-class ConfigError(ValueError):
-    """A setting that cannot be used; the message names the key and what is allowed."""
-
-
-@dataclass(frozen=True)
-class Settings:
-    """Everything ``python -m nbv.dataset`` needs, validated (see ``conf/dataset.yaml``)."""
-
-    out_dir: Path
-    source: str = "synthetic"
-    root: str | None = None
-    categories: tuple[str, ...] | None = None
-    counts: dict[str, int] | None = None
-    split_fractions: dict[str, float] = field(default_factory=dict)
-    seed: int = 0
-    shard: int = 0
-    num_shards: int = 1
-    limit: int | None = None
-    viewspaces: dict[str, str] = field(
-        default_factory=lambda: {"original": "original", "permuted": "permuted"}
-    )
-    intrinsics: Intrinsics = field(default_factory=Intrinsics.centred)
-    n_gt: int = 16384
-    eps: float = 0.00707
-    points_per_view: int = 2048
-    keep_depth: bool = False
-    backend: str = "blender"
-    blender: str | None = None
-    threads: int = 0
-    device: str = "CPU"
-    chunk: int = 16
-    progress: bool = True
-
-    def __post_init__(self) -> None:
-        checks = [
-            ("num_shards", self.num_shards >= 1, "an integer >= 1"),
-            ("shard", 0 <= self.shard < self.num_shards, f"in 0..{self.num_shards - 1}"),
-            ("n_gt", self.n_gt >= 1, "an integer >= 1"),
-            ("eps", self.eps > 0, "a positive distance"),
-            ("points_per_view", self.points_per_view >= 0, "an integer >= 0 (0 = all)"),
-            ("renderer.backend", self.backend in BACKENDS, f"one of {', '.join(BACKENDS)}"),
-            ("renderer.chunk", self.chunk >= 1, "an integer >= 1"),
-            ("limit", self.limit is None or self.limit >= 0, "null or an integer >= 0"),
-            ("viewspaces", len(self.viewspaces) >= 1, "at least one name: viewspace entry"),
-        ]
-        for key, ok, allowed in checks:
-            if not ok:
-                raise ConfigError(
-                    f"{key}={getattr(self, key.split('.')[-1], '?')!r}: must be {allowed}"
-                )
-
-    def data_identity(self) -> dict:
-        """The settings that determine the arrays (must match to resume into a folder)."""
-        return {
-            "schema_version": SCHEMA_VERSION,
-            "source": self.source,
-            "root": self.root,
-            "categories": list(self.categories) if self.categories else None,
-            "counts": self.counts,
-            "split_fractions": self.split_fractions,
-            "seed": self.seed,
-            "num_shards": self.num_shards,
-            "viewspaces": self.viewspaces,
-            "camera": asdict(self.intrinsics),
-            "n_gt": self.n_gt,
-            "eps": self.eps,
-            "points_per_view": self.points_per_view,
-            "keep_depth": self.keep_depth,
-            "backend": self.backend,
-        }
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -374,73 +303,18 @@ def generate(settings: Settings) -> Summary:
     return summary
 
 
-def settings_from_config(cfg) -> Settings:
-    """Build :class:`Settings` from the hydra config of ``conf/dataset.yaml``."""
-    from omegaconf import OmegaConf
-
-    c = OmegaConf.to_container(cfg, resolve=True)
-    known = {
-        "source", "root", "categories", "synthetic", "split_fractions", "seed", "out_dir",
-        "shard", "num_shards", "limit", "viewspaces", "camera", "n_gt", "eps",
-        "points_per_view", "keep_depth", "renderer", "progress", "samples",
-    }  # fmt: skip
-    unknown = sorted(set(c) - known - {"hydra"})
-    if unknown:
-        raise ConfigError(f"unknown keys {unknown}; allowed: {sorted(known)}")
-    camera, renderer = c["camera"], c["renderer"]
-    return Settings(
-        out_dir=Path(c["out_dir"]),
-        source=c["source"],
-        root=c["root"],
-        categories=tuple(c["categories"]) if c["categories"] else None,
-        counts=dict(c["synthetic"]["counts"]),
-        split_fractions=dict(c["split_fractions"]),
-        seed=int(c["seed"]),
-        shard=int(c["shard"]),
-        num_shards=int(c["num_shards"]),
-        limit=c["limit"],
-        viewspaces=dict(c["viewspaces"]),
-        intrinsics=Intrinsics.centred(
-            int(camera["width"]), int(camera["height"]), float(camera["focal"])
-        ),
-        n_gt=int(c["n_gt"]),
-        eps=float(c["eps"]),
-        points_per_view=int(c["points_per_view"]),
-        keep_depth=bool(c["keep_depth"]),
-        backend=renderer["backend"],
-        blender=renderer["blender"],
-        threads=int(renderer["threads"]),
-        device=str(renderer["device"]),
-        chunk=int(renderer["chunk"]),
-        progress=bool(c["progress"]),
-    )
-
-
-def sample_settings_from_config(cfg) -> SampleSettings | None:
-    """The ``samples:`` block of ``conf/dataset.yaml`` (None when disabled)."""
-    from omegaconf import OmegaConf
-
-    c = dict(OmegaConf.to_container(cfg.samples, resolve=True))
-    if not c.pop("enabled", True):
-        return None
-    allowed = set(SampleSettings.__dataclass_fields__) - {"seed"}
-    unknown = sorted(set(c) - allowed)
-    if unknown:
-        raise ConfigError(f"unknown keys samples.{unknown}; allowed: {sorted(allowed)}")
-    c["scores"] = tuple(c.get("scores", SampleSettings.scores))
-    return SampleSettings(**c, seed=int(cfg.seed))
-
-
 def run(settings: Settings, sample_settings: SampleSettings | None) -> int:
-    """Generate the shard, then its training samples; print the summary; return the exit status."""
+    """Generate the shard, then its training samples; log the summary; return the exit status."""
     summary = generate(settings)
     report(summary)
     if sample_settings is not None and summary.shard_file.exists() and summary.complete:
         if samples_up_to_date(summary.shard_file, sample_settings):
-            print(f"{samples_path(summary.shard_file)}: up to date")
+            log.info("%s: up to date", samples_path(summary.shard_file))
         else:
             out, skipped = write_samples(summary.shard_file, sample_settings, settings.progress)
-            print(f"{out}: written" + "".join(f"\n  skipped {k} ({s}): {r}" for k, s, r in skipped))
+            log.info("%s: written", out)
+            for key, score, reason in skipped:
+                log.info("  skipped %s (%s): %s", key, score, reason)
     return exit_status(summary)
 
 
@@ -450,5 +324,5 @@ def exit_status(summary: Summary) -> int:
 
 
 def report(summary: Summary) -> None:
-    """Print the run's summary for a person."""
-    print(summary, file=sys.stderr if summary.failures else sys.stdout)
+    """Log the run's summary for a person (a warning when models failed)."""
+    log.log(logging.WARNING if summary.failures else logging.INFO, "%s", summary)

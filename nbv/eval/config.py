@@ -1,34 +1,43 @@
-"""The evaluation settings, validated from the hydra config (``conf/eval.yaml``)."""
+"""The evaluation settings: the schema of ``conf/eval.yaml`` and the settings built from it.
+
+:class:`EvalConfig` is registered as ``eval_schema``, the first entry of the config's defaults
+list: hydra refuses an unknown key or a value of the wrong type while composing. The method
+names, the network methods' checkpoint inputs and the disturbance checks come from the registry
+(:mod:`nbv.policies.registry`); the ``hull:`` keys are the fields of
+:class:`nbv.planning.settings.PlannerSettings`, which :attr:`EvalSettings.hull` holds.
+:class:`EvalSettings` keeps the checks of names, ranges and fields that go together, among them
+that every start view lies in every selected viewspace.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
+from omegaconf import MISSING
 
-#: Every method name, in report order.
-METHODS = (
-    "random",
-    "oracle",
-    "pcnbv",
-    "pcnbv_sph",
-    "hull_sco",
-    "hull_sco_sph",
-    "hull_sco_probes",
-    "hull_sco_replan",
+from nbv.config.schema import (
+    CameraConfig,
+    ConfigError,
+    PathsConfig,
+    ProtocolConfig,
+    check_views,
+    register,
+    schema_of,
+    validated,
 )
-#: The methods that run a network, and the checkpoint input each one needs.
-NETWORK_INPUTS = {"pcnbv": "points", "pcnbv_sph": "signature"}
+from nbv.geometry.viewspace import get_viewspace
+from nbv.planning.settings import PlannerSettings
+from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
+from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS
+
 DATASETS = ("unseen", "test", "meshes")
 VIEWSPACES = ("original", "permuted")
-CHECKS = ("random_cloud", "permuted_state", "random_hull")
-SIMULATIONS = ("analytic", "raycast")
 BACKENDS = ("raycast", "blender")
 
-
-class EvalConfigError(ValueError):
-    """A setting that cannot be used; the message names the key and what is allowed."""
+#: The error of a setting that cannot be used (one class for every entry point).
+EvalConfigError = ConfigError
 
 
 @dataclass(frozen=True)
@@ -48,23 +57,11 @@ class PrepareSettings:
 
 
 @dataclass(frozen=True)
-class HullSettings:
-    """Convex-hull set cover settings (``hull:`` in ``conf/eval.yaml``)."""
-
-    n_samp: int = 16384
-    simulation: str = "analytic"
-    dilate: bool = False
-    lmax: int = 3
-    probes: int = 3
-    probe_points: int = 100
-
-
-@dataclass(frozen=True)
 class EvalSettings:
     """Everything one evaluation needs (see ``conf/eval.yaml`` for the meaning of each)."""
 
     out_dir: Path
-    methods: tuple[str, ...] = METHODS
+    methods: tuple[str, ...] = tuple(METHODS)
     datasets: tuple[str, ...] = ("unseen",)
     data_dir: Path = Path("data/generated/synthetic")
     mesh_dir: Path | None = None
@@ -79,7 +76,7 @@ class EvalSettings:
             "pcnbv_sph": "outputs/train/pcnbv_sph_coverage_fold0/best.pt",
         }
     )
-    hull: HullSettings = field(default_factory=HullSettings)
+    hull: PlannerSettings = field(default_factory=PlannerSettings)
     checks: tuple[str, ...] = CHECKS
     disturb_viewspaces: tuple[str, ...] = ("original",)
     disturb_start_views: tuple[int, ...] = (1, 10, 24)
@@ -90,12 +87,11 @@ class EvalSettings:
     plots: bool = True
 
     def __post_init__(self) -> None:
-        _allowed("methods", self.methods, METHODS)
+        _allowed("methods", self.methods, tuple(METHODS))
         _allowed("dataset", self.datasets, DATASETS)
         _allowed("viewspace", self.viewspaces, VIEWSPACES)
         _allowed("disturb.checks", self.checks, CHECKS, empty_ok=True)
         _allowed("disturb.viewspace", self.disturb_viewspaces, VIEWSPACES, empty_ok=True)
-        _allowed("hull.simulation", (self.hull.simulation,), SIMULATIONS)
         _allowed("prepare.backend", (self.prepare.backend,), BACKENDS)
         missing = sorted(set(NETWORK_INPUTS) & set(self.methods) - set(self.checkpoints))
         if missing:
@@ -108,17 +104,11 @@ class EvalSettings:
         checks = [
             ("n_views", self.n_views, self.n_views >= 2, "an integer >= 2"),
             ("start_views", list(self.start_views), len(self.start_views) >= 1, "non-empty"),
-            ("start_views", list(self.start_views), min(self.start_views, default=0) >= 0,
-             "view indices >= 0"),
             ("limit", self.limit, self.limit is None or self.limit >= 1,
              "null or an integer >= 1"),
             ("threads", self.threads, self.threads >= 0, "an integer >= 0 (0 = torch's default)"),
             ("disturb.radius", self.disturb_radius, self.disturb_radius > 0, "a positive distance"),
-            ("hull.n_samp", h.n_samp, h.n_samp >= 1, "an integer >= 1"),
             ("hull.dilate", h.dilate, isinstance(h.dilate, bool), "true or false"),
-            ("hull.lmax", h.lmax, h.lmax >= 0, "an integer >= 0"),
-            ("hull.probes", h.probes, h.probes >= 0, "an integer >= 0"),
-            ("hull.probe_points", h.probe_points, h.probe_points >= 1, "an integer >= 1"),
             ("prepare.n_gt", p.n_gt, p.n_gt >= 1, "an integer >= 1"),
             ("prepare.eps", p.eps, p.eps > 0, "a positive distance"),
             ("prepare.points_per_view", p.points_per_view, p.points_per_view >= 0,
@@ -127,6 +117,8 @@ class EvalSettings:
         for key, value, ok, allowed in checks:
             if not ok:
                 raise EvalConfigError(f"{key}={value!r}: must be {allowed}")
+        for vs in self.viewspaces:
+            check_views("start_views", self.start_views, vs, len(get_viewspace(vs)))
         if self.checks and self.check_viewspaces and not self.check_start_views:
             raise EvalConfigError(
                 f"disturb.start_views={list(self.disturb_start_views)}: none of them is in "
@@ -171,115 +163,122 @@ def _names(value, key: str) -> tuple[str, ...]:
     raise EvalConfigError(f"{key}={value!r}: must be a name or a list of names")
 
 
-def _int(value, key: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise EvalConfigError(f"{key}={value!r}: must be an integer")
-    return value
+# The schema of conf/eval.yaml: which keys exist and their types (the values are there). A key
+# that takes one name or a list of names is typed Any and checked by _names.
+
+#: ``hull:``: the fields of PlannerSettings.
+HullConfig = schema_of(PlannerSettings, "HullConfig")
 
 
-def _ints(value, key: str) -> tuple[int, ...]:
-    if not isinstance(value, list | tuple):
-        raise EvalConfigError(f"{key}={value!r}: must be a list of view indices")
-    return tuple(_int(v, key) for v in value)
+@dataclass
+class PrepareConfig:
+    """``prepare:``; its camera comes from ``conf/camera/`` (``camera@prepare.camera``)."""
+
+    dir: str = MISSING
+    backend: str = MISSING
+    blender: str | None = MISSING
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    n_gt: int = MISSING
+    eps: float = MISSING
+    points_per_view: int = MISSING
+    seed: int = MISSING
 
 
-def _number(value, key: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise EvalConfigError(f"{key}={value!r}: must be a number")
-    return float(value)
+@dataclass
+class DisturbConfig:
+    """``disturb:``."""
+
+    checks: Any = MISSING
+    viewspace: Any = MISSING
+    start_views: list[int] | None = MISSING
+    radius: float = MISSING
 
 
-def _section(c: dict, key: str, known: set[str]) -> dict:
-    section = c.get(key)
-    if not isinstance(section, dict):
-        raise EvalConfigError(f"{key} must be a mapping with keys {sorted(known)}")
-    unknown = sorted(set(section) - known)
-    if unknown:
-        raise EvalConfigError(f"unknown keys {key}.{unknown}; allowed: {sorted(known)}")
-    return section
+@dataclass
+class EvalConfig:
+    """``conf/eval.yaml``."""
+
+    run: str = MISSING
+    out_root: str = MISSING
+    methods: Any = MISSING
+    dataset: Any = MISSING
+    data_dir: str = MISSING
+    mesh_dir: str | None = MISSING
+    limit: int | None = MISSING
+    prepare: PrepareConfig = field(default_factory=PrepareConfig)
+    viewspace: Any = MISSING
+    start_views: list[int] = MISSING
+    n_views: int = MISSING
+    checkpoints: dict[str, str] = MISSING
+    hull: HullConfig = field(default_factory=HullConfig)
+    disturb: DisturbConfig = field(default_factory=DisturbConfig)
+    seed: int = MISSING
+    threads: int = MISSING
+    progress: bool = MISSING
+    plots: bool = MISSING
+    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
+    paths: PathsConfig = field(default_factory=PathsConfig)
 
 
-KNOWN_KEYS = {
-    "run", "out_root", "methods", "dataset", "data_dir", "mesh_dir", "limit", "prepare",
-    "viewspace", "start_views", "n_views", "checkpoints", "hull", "disturb", "seed", "threads",
-    "progress", "plots",
-}  # fmt: skip
+register("eval_schema", EvalConfig)
 
 
 def settings_from_config(cfg) -> EvalSettings:
     """Build :class:`EvalSettings` from the composed hydra config of ``conf/eval.yaml``.
 
     Raises:
-        EvalConfigError: an unknown key or a bad value (the message names the key).
+        EvalConfigError: an unknown key, a value of the wrong type or out of range, a start
+            view outside a viewspace (the message names the key).
     """
-    from omegaconf import OmegaConf
-
-    c = OmegaConf.to_container(cfg, resolve=True) if not isinstance(cfg, dict) else dict(cfg)
-    c.pop("hydra", None)
-    unknown = sorted(set(c) - KNOWN_KEYS)
-    if unknown:
-        raise EvalConfigError(f"unknown keys {unknown}; allowed: {sorted(KNOWN_KEYS)}")
-    prep = _section(c, "prepare", {"dir", "backend", "blender", "camera", "n_gt", "eps",
-                                   "points_per_view", "seed"})  # fmt: skip
-    camera = prep.get("camera", {})
-    hull = _section(c, "hull", {"n_samp", "simulation", "dilate", "lmax", "probes",
-                                "probe_points"})  # fmt: skip
-    disturb = _section(c, "disturb", {"checks", "viewspace", "start_views", "radius"})
-    checkpoints = c.get("checkpoints") or {}
-    if not isinstance(checkpoints, dict):
-        raise EvalConfigError(f"checkpoints={checkpoints!r}: must map method names to paths")
+    c = validated(EvalConfig, cfg)
+    prep, disturb, checkpoints = c["prepare"], c["disturb"], c["checkpoints"]
     unknown_ckpt = sorted(set(checkpoints) - set(NETWORK_INPUTS))
     if unknown_ckpt:
         raise EvalConfigError(
             f"checkpoints: unknown {unknown_ckpt}; allowed: {', '.join(NETWORK_INPUTS)}"
         )
-    mesh_dir = c.get("mesh_dir")
-    datasets = _names(c.get("dataset"), "dataset")
+    mesh_dir = c["mesh_dir"]
+    datasets = _names(c["dataset"], "dataset")
     if not datasets:
         datasets = ("unseen", "meshes") if mesh_dir else ("unseen",)
-    start_views = _ints(c.get("start_views"), "start_views")
-    disturb_starts = disturb.get("start_views")
-    disturb_starts = (
-        start_views if disturb_starts is None else _ints(disturb_starts, "disturb.start_views")
-    )
-    limit = c.get("limit")
+    start_views = tuple(c["start_views"])
+    disturb_starts = disturb["start_views"]
+    disturb_starts = start_views if disturb_starts is None else tuple(disturb_starts)
+    try:
+        hull = PlannerSettings(**c["hull"])
+    except ValueError as err:  # PlannerSettings names the hull.<key> it refuses
+        raise EvalConfigError(str(err)) from None
+    camera = prep["camera"]
     return EvalSettings(
-        out_dir=Path(str(c["out_root"])) / str(c["run"]),
-        methods=_names(c.get("methods"), "methods"),
+        out_dir=Path(c["out_root"]) / c["run"],
+        methods=_names(c["methods"], "methods"),
         datasets=datasets,
-        data_dir=Path(str(c["data_dir"])),
-        mesh_dir=Path(str(mesh_dir)) if mesh_dir else None,
-        limit=None if limit is None else _int(limit, "limit"),
+        data_dir=Path(c["data_dir"]),
+        mesh_dir=Path(mesh_dir) if mesh_dir else None,
+        limit=c["limit"],
         prepare=PrepareSettings(
-            dir=Path(str(prep.get("dir", "outputs/eval/prepared"))),
-            backend=str(prep.get("backend", "raycast")),
-            blender=prep.get("blender"),
-            width=_int(camera.get("width", 640), "prepare.camera.width"),
-            height=_int(camera.get("height", 480), "prepare.camera.height"),
-            focal=_number(camera.get("focal", 476.0), "prepare.camera.focal"),
-            n_gt=_int(prep.get("n_gt", 16384), "prepare.n_gt"),
-            eps=_number(prep.get("eps", 0.00707), "prepare.eps"),
-            points_per_view=_int(prep.get("points_per_view", 2048), "prepare.points_per_view"),
-            seed=_int(prep.get("seed", 0), "prepare.seed"),
+            dir=Path(prep["dir"]),
+            backend=prep["backend"],
+            blender=prep["blender"],
+            width=camera["width"],
+            height=camera["height"],
+            focal=camera["focal"],
+            n_gt=prep["n_gt"],
+            eps=prep["eps"],
+            points_per_view=prep["points_per_view"],
+            seed=prep["seed"],
         ),
-        viewspaces=_names(c.get("viewspace"), "viewspace"),
+        viewspaces=_names(c["viewspace"], "viewspace"),
         start_views=start_views,
-        n_views=_int(c.get("n_views"), "n_views"),
-        checkpoints={k: str(v) for k, v in checkpoints.items()},
-        hull=HullSettings(
-            n_samp=_int(hull.get("n_samp", 16384), "hull.n_samp"),
-            simulation=str(hull.get("simulation", "analytic")),
-            dilate=hull.get("dilate", False),
-            lmax=_int(hull.get("lmax", 3), "hull.lmax"),
-            probes=_int(hull.get("probes", 3), "hull.probes"),
-            probe_points=_int(hull.get("probe_points", 100), "hull.probe_points"),
-        ),
-        checks=_names(disturb.get("checks"), "disturb.checks"),
-        disturb_viewspaces=_names(disturb.get("viewspace"), "disturb.viewspace"),
+        n_views=c["n_views"],
+        checkpoints=dict(checkpoints),
+        hull=hull,
+        checks=_names(disturb["checks"], "disturb.checks"),
+        disturb_viewspaces=_names(disturb["viewspace"], "disturb.viewspace"),
         disturb_start_views=disturb_starts,
-        disturb_radius=_number(disturb.get("radius", 0.5), "disturb.radius"),
-        seed=_int(c.get("seed"), "seed"),
-        threads=_int(c.get("threads", 0), "threads"),
-        progress=bool(c.get("progress", True)),
-        plots=bool(c.get("plots", True)),
+        disturb_radius=disturb["radius"],
+        seed=c["seed"],
+        threads=c["threads"],
+        progress=c["progress"],
+        plots=c["plots"],
     )
