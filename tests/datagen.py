@@ -6,7 +6,8 @@ from pathlib import Path
 
 import trimesh
 
-from nbv.dataset.generate import Settings, generate
+from nbv.dataset.config import Settings
+from nbv.dataset.generate import generate
 from nbv.dataset.samples import SampleSettings, write_samples
 from nbv.geometry.camera import Intrinsics
 

@@ -15,7 +15,8 @@ import h5py
 import numpy as np
 import pytest
 
-from nbv.dataset.generate import Settings, generate
+from nbv.dataset.config import Settings
+from nbv.dataset.generate import generate
 from nbv.geometry.camera import Intrinsics
 
 pytestmark = [pytest.mark.slurm, pytest.mark.blender]

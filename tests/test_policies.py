@@ -11,7 +11,8 @@ import pytest
 from datagen import SMALL_CAMERA
 
 import nbv.dataset
-from nbv.dataset.generate import Settings, generate
+from nbv.dataset.config import Settings
+from nbv.dataset.generate import generate
 from nbv.planning.hull import convex_hull
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.planner import plan_sph

@@ -8,7 +8,7 @@ where the CPU runs it natively, subnormals flushed); the reference is the plain 
 called the same way.
 
 Untrained weights cost what trained ones cost only because subnormals are flushed in the
-project's path; pass a trained checkpoint (``python -m nbv.bench --checkpoint best.pt``) to time
+project's path; pass a trained checkpoint (``python -m nbv.bench checkpoint=best.pt``) to time
 the reference on trained weights too.
 """
 

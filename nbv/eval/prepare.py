@@ -14,7 +14,8 @@ import json
 from pathlib import Path
 
 from nbv.assets.meshes import MESH_SUFFIXES
-from nbv.dataset.generate import Settings, generate
+from nbv.dataset.config import Settings
+from nbv.dataset.generate import generate
 from nbv.eval.config import PrepareSettings
 from nbv.geometry.camera import Intrinsics
 
