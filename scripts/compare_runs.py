@@ -5,6 +5,9 @@ Used to show that a refactoring changed no output:
     python scripts/compare_runs.py h5 BEFORE_DIR AFTER_DIR        # every *.h5, datasets and attrs
     python scripts/compare_runs.py ckpt BEFORE.pt AFTER.pt        # every weight tensor
     python scripts/compare_runs.py results BEFORE.json AFTER.json # every episode's views and curves
+    python scripts/compare_runs.py all BEFORE_DIR AFTER_DIR       # all three, every file of a tree
+
+(``scripts/reference_outputs.sh`` makes such a tree.)
 
 Prints one line per compared item and exits 1 when anything differs. Attributes that record
 the settings as JSON (``config``) are compared as parsed JSON.
@@ -81,7 +84,7 @@ def compare_ckpt(before: Path, after: Path) -> list[str]:
     problems = [] if set(sb) == set(sa) else [f"weight names differ: {set(sb) ^ set(sa)}"]
     bad = [k for k in sb if k in sa and not torch.equal(sb[k], sa[k])]
     problems += [f"weight {k} differs" for k in bad]
-    print(f"{before.name}: {len(sb)} tensors, {len(bad)} differ")
+    print(f"{before}: {len(sb)} tensors, {len(bad)} differ")
     return problems
 
 
@@ -98,17 +101,33 @@ def compare_results(before: Path, after: Path) -> list[str]:
         for key in fields:
             if eb.get(key) != ea.get(key):
                 problems.append(f"episode {i} ({eb.get('method')}, {eb.get('key')}): {key}")
-    print(f"{before.name}: {len(b)} episodes, {len(problems)} fields differ")
+    print(f"{before}: {len(b)} episodes, {len(problems)} fields differ")
+    return problems
+
+
+def compare_all(before: Path, after: Path) -> list[str]:
+    """Every HDF5 file, checkpoint and ``results.json`` of two trees, matched by relative path."""
+    problems = compare_h5(before, after)
+    for pattern, compare in (("*.pt", compare_ckpt), ("results.json", compare_results)):
+        names = sorted(p.relative_to(before) for p in before.rglob(pattern))
+        if not names:
+            problems.append(f"no {pattern} under {before}")
+        for name in names:
+            if not (after / name).exists():
+                problems.append(f"{name}: missing under {after}")
+                continue
+            problems += [f"{name}: {line}" for line in compare(before / name, after / name)]
     return problems
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("kind", choices=("h5", "ckpt", "results"))
+    parser.add_argument("kind", choices=("h5", "ckpt", "results", "all"))
     parser.add_argument("before", type=Path)
     parser.add_argument("after", type=Path)
     args = parser.parse_args(argv)
-    compare = {"h5": compare_h5, "ckpt": compare_ckpt, "results": compare_results}[args.kind]
+    kinds = {"h5": compare_h5, "ckpt": compare_ckpt, "results": compare_results, "all": compare_all}
+    compare = kinds[args.kind]
     problems = compare(args.before, args.after)
     for line in problems:
         print("DIFF", line)

@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# reference_outputs.sh OUT_DIR [CODE_DIR]: make the outputs that a behaviour-preserving change must
+# leave equal, with the code of CODE_DIR (default: this checkout). Compare two such folders with
+#   python scripts/compare_runs.py h5 BEFORE/dsA AFTER/dsA     (and dsB)
+#   python scripts/compare_runs.py ckpt BEFORE/trainA/best.pt AFTER/trainA/best.pt   (last.pt, B)
+#   python scripts/compare_runs.py results BEFORE/evalA/r/results.json AFTER/evalA/r/results.json
+# A: the Blender dataset of 8 models, one epoch of PCNBV (fold 1: the 8 models are airplanes and
+#    cabinets), the evaluation of its test split (2 models a dataset).
+# B: a ray-cast dataset of every category, one epoch of PCNBV-sph, both networks evaluated on 2
+#    unseen models. About 10 minutes on 2 cores.
+set -euo pipefail
+OUT=$(realpath -m "$1")
+CODE=$(realpath "${2:-$(dirname "$0")/..}")
+PY=${PYTHON:-$CODE/.venv/bin/python}
+cd "$CODE"
+export PYTHONPATH="$CODE"
+mkdir -p "$OUT"
+step() {  # step NAME COMMAND...: run, log to OUT/NAME.log, report seconds
+  local name=$1 t0=$SECONDS; shift
+  "$@" > "$OUT/$name.log" 2>&1 || { echo "$name failed: see $OUT/$name.log" >&2; exit 1; }
+  echo "$name $((SECONDS - t0)) s"
+}
+step dsA $PY -m nbv.dataset limit=8 out_dir="$OUT/dsA" progress=false hydra.run.dir="$OUT/hydra/dsA"
+step trainA $PY -m train dataset="$OUT/dsA" fold=1 epochs=1 eval_every=1 out_dir="$OUT/trainA" \
+  progress=false
+step evalA $PY -m nbv.eval data_dir="$OUT/dsA" dataset=test limit=2 out_root="$OUT/evalA" run=r \
+  checkpoints.pcnbv="$OUT/trainA/best.pt" checkpoints.pcnbv_sph="$OUT/missing.pt" plots=false \
+  progress=false
+step dsB $PY -m nbv.dataset renderer.backend=raycast \
+  'synthetic.counts={train: 1, valid: 1, test: 0, unseen: 1}' out_dir="$OUT/dsB" progress=false \
+  hydra.run.dir="$OUT/hydra/dsB"
+step trainB $PY -m train dataset="$OUT/dsB" epochs=1 eval_every=1 model=pcnbv_sph \
+  out_dir="$OUT/trainB" progress=false
+step evalB $PY -m nbv.eval data_dir="$OUT/dsB" limit=2 out_root="$OUT/evalB" run=r \
+  checkpoints.pcnbv="$OUT/trainA/best.pt" checkpoints.pcnbv_sph="$OUT/trainB/best.pt" \
+  plots=false progress=false
