@@ -27,6 +27,7 @@ from nbv.dataset.reader import SHARD_GLOB
 from nbv.geometry.viewspace import get_viewspace
 from nbv.models.config import PCNBVConfig
 from nbv.models.precision import PRECISIONS
+from nbv.policies.episode import DEFAULT_START_VIEWS
 
 SCORES = ("coverage", "vig")
 INPUTS = ("points", "signature")
@@ -73,7 +74,7 @@ class TrainSettings:
     eval_points: int = 512
     precision: str = "auto"
     eval_every: int = 2
-    start_views: tuple[int, ...] = (1, 3, 7, 10, 15, 24, 27, 30)
+    start_views: tuple[int, ...] = DEFAULT_START_VIEWS
     device: str = "auto"
     threads: int = 0
     progress: bool = True

@@ -26,6 +26,7 @@ from nbv.dataset.samples import SampleSettings
 from nbv.dataset.schema import SCHEMA_VERSION
 from nbv.dataset.sources import SOURCES
 from nbv.geometry.camera import Intrinsics
+from nbv.geometry.scores import DEFAULT_EPS
 
 __all__ = [
     "BACKENDS",
@@ -58,7 +59,7 @@ class Settings:
     )
     intrinsics: Intrinsics = field(default_factory=Intrinsics.centred)
     n_gt: int = 16384
-    eps: float = 0.00707
+    eps: float = DEFAULT_EPS
     points_per_view: int = 2048
     keep_depth: bool = False
     backend: str = "blender"

@@ -27,6 +27,7 @@ from nbv.config.schema import (
     schema_of,
     validated,
 )
+from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import get_viewspace
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
@@ -51,7 +52,7 @@ class PrepareSettings:
     height: int = 480
     focal: float = 476.0
     n_gt: int = 16384
-    eps: float = 0.00707
+    eps: float = DEFAULT_EPS
     points_per_view: int = 2048
     seed: int = 0
 
