@@ -38,3 +38,13 @@ def test_the_dataset_entry_point_still_opens_lazily():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "True"
+
+
+@pytest.mark.parametrize(
+    "module", ["nbv.models.config", "train.config", "nbv.eval.config", "nbv.dataset.config"]
+)
+def test_settings_are_checked_without_torch(module):
+    """A refused run answers before torch loads (seconds on a small machine)."""
+    code = f"import sys, {module}\nprint('torch' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

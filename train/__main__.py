@@ -28,10 +28,11 @@ log = logging.getLogger("train")
 
 @hydra.main(config_path="../conf", config_name="train", version_base="1.3")
 def main(cfg: DictConfig) -> None:
-    from train.loop import run
-
     try:
         settings = settings_from_config(cfg)
+        # torch loads only for a run that goes ahead: a refused one answers at once.
+        from train.loop import run
+
         # Point hydra's job folder at the run folder, so `train.summary <sweep dir>` finds it.
         job_dir = Path(HydraConfig.get().runtime.output_dir)
         job_dir.mkdir(parents=True, exist_ok=True)

@@ -25,8 +25,7 @@ from nbv.config.schema import (
 )
 from nbv.dataset.reader import SHARD_GLOB
 from nbv.geometry.viewspace import get_viewspace
-from nbv.models.config import PCNBVConfig
-from nbv.models.precision import PRECISIONS
+from nbv.models.config import PRECISIONS, PCNBVConfig
 from nbv.policies.episode import DEFAULT_START_VIEWS
 
 SCORES = ("coverage", "vig")

@@ -7,6 +7,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+#: Arithmetic of forward passes: ``"auto"`` (bf16 where the hardware runs it natively, else
+#: fp32), ``"fp32"`` or ``"bf16"`` (bfloat16 autocast; :mod:`nbv.models.precision`). Here, with
+#: the config and without torch, so that settings can be checked before torch is loaded.
+PRECISIONS = ("auto", "fp32", "bf16")
+
 
 @dataclass(frozen=True)
 class PCNBVConfig:

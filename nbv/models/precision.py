@@ -16,9 +16,7 @@ from collections.abc import Iterator
 import torch
 from torch import Tensor
 
-#: Arithmetic of forward passes: ``"auto"`` (bf16 where the hardware runs it natively, else
-#: fp32), ``"fp32"`` or ``"bf16"`` (bfloat16 autocast).
-PRECISIONS = ("auto", "fp32", "bf16")
+from nbv.models.config import PRECISIONS
 
 
 def resolve_precision(precision: str, device: torch.device | str = "cpu") -> str:
