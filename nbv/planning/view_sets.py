@@ -9,9 +9,8 @@ from nbv.geometry.camera import Intrinsics, backproject
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS, covered_mask
 from nbv.planning.dilation import dilate_view_sets, near_triangles
+from nbv.planning.settings import SIMULATIONS
 from nbv.planning.visibility import analytic_visibility, analytic_visibility_faces, as_poses
-
-METHODS = ("analytic", "raycast")
 
 
 def _hull_mesh(hull: ConvexHull | tuple[np.ndarray, np.ndarray] | None) -> tuple:
@@ -125,4 +124,4 @@ def view_sets(
         if not eps > 0:
             raise ValueError(f"eps must be positive, got {eps}")
         return raycast_view_sets(samples, poses, intrinsics, hull, eps)
-    raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    raise ValueError(f"method must be one of {SIMULATIONS}, got {method!r}")
