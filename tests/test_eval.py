@@ -78,9 +78,9 @@ def test_full_run_writes_every_output(full_run):
     data = json.loads((full_run / "results.json").read_text())
     episodes = data["episodes"]
     plain = [e for e in episodes if e["check"] is None]
-    # 2 models x 2 viewspaces x 8 methods x 2 starts, then the checks on 1 start of original:
+    # 2 models x 2 viewspaces x 9 methods x 2 starts, then the checks on 1 start of original:
     # 2 networks x 2 checks + the random hull = 5 x 2 models x 1 start.
-    assert len(plain) == 2 * 2 * 8 * 2
+    assert len(plain) == 2 * 2 * len(METHODS_BY_NAME) * 2 == 2 * 2 * 9 * 2
     assert len(episodes) - len(plain) == 5 * 2
     assert data["skipped"] == {}
     for e in episodes:
@@ -95,7 +95,7 @@ def test_full_run_writes_every_output(full_run):
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 2 * 8 + 5  # (viewspace, method) pairs, then the checks
+    assert len(rows) == 2 * 9 + 5  # (viewspace, method) pairs, then the checks
     by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
     random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
     assert float(by[("original", "random", "")]["auc"]) == pytest.approx(
@@ -236,7 +236,7 @@ def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_pa
 @pytest.mark.parametrize(
     "override, message",
     [
-        (dict(methods=["random", "magic"]), "methods: unknown 'magic'; allowed: random, oracle"),
+        (dict(methods=["random", "magic"]), "methods: unknown 'magic'; allowed: random, spread"),
         (dict(viewspace="sideways"), "viewspace: unknown 'sideways'; allowed: original, permuted"),
         (dict(dataset="shapenet"), "dataset: unknown 'shapenet'; allowed: unseen, test, meshes"),
         (dict(dataset="meshes"), "mesh_dir"),
@@ -325,7 +325,7 @@ def test_cli_refuses_a_bad_method_with_one_line(tmp_path):
         cwd=ROOT, capture_output=True, text=True,
     )  # fmt: skip
     assert done.returncode == 2
-    assert "methods: unknown 'magic'; allowed: random, oracle, pcnbv" in done.stderr
+    assert "methods: unknown 'magic'; allowed: random, spread, oracle, pcnbv" in done.stderr
     assert not list(tmp_path.rglob("results.json"))
     assert not list(tmp_path.iterdir())  # not even hydra's run folder
 

@@ -17,7 +17,7 @@ from nbv.planning.hull import convex_hull
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.planner import plan_sph
 from nbv.planning.settings import PlannerSettings
-from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.network import NetworkPolicy
@@ -88,6 +88,7 @@ def all_policies(networks, seed: int = 0) -> dict:
     hull = dict(intrinsics=SMALL_CAMERA, settings=PlannerSettings(n_samp=2048))
     return {
         "random": RandomPolicy(rng(seed)),
+        "spread": SpreadPolicy(),
         "oracle": OraclePolicy(),
         "pcnbv": networks["points"].fresh(),
         "pcnbv_sph": networks["signature"].fresh(),
@@ -131,6 +132,38 @@ def test_timings_are_recorded_per_decision(model, networks):
     assert len(policies["hull_sco_sph"].timings["signature"]) == 1
     assert len(policies["hull_sco_replan"].timings["set_cover"]) == 9
     assert len(policies["oracle"].timings["gains"]) == 9
+
+
+def _spread_by_brute_force(positions: np.ndarray, start: int, n: int) -> list[int]:
+    """Each next view: the largest smallest angle (degrees, arccos) to the visited views; ties
+    within 1e-9 degrees to the lowest index."""
+    unit = positions / np.linalg.norm(positions, axis=1, keepdims=True)
+    angles = np.rad2deg(np.arccos(np.clip(unit @ unit.T, -1.0, 1.0)))
+    views = [start]
+    while len(views) < n:
+        best, best_angle = None, -1.0
+        for v in range(len(unit)):
+            if v in views:
+                continue
+            smallest = min(angles[v, w] for w in views)
+            if smallest > best_angle + 1e-9:
+                best, best_angle = v, smallest
+        views.append(best)
+    return views
+
+
+@pytest.mark.parametrize("viewspace", ["original", "permuted"])
+def test_spread_takes_the_view_farthest_in_angle_from_the_visited_ones(model, viewspace):
+    positions = model.views[viewspace].poses[:, :3, 3]
+    for start in (0, *DEFAULT_START_VIEWS):
+        episode = run_episode(model, viewspace, start, SpreadPolicy(), n_views=12)
+        assert episode.views == _spread_by_brute_force(positions, start, 12), start
+        again = run_episode(model, viewspace, start, SpreadPolicy(), n_views=12)
+        assert again.views == episode.views
+    if viewspace == "original":
+        # From the top pole the farthest views are the whole -30 degree ring (120 degrees away):
+        # a tie, which goes to the ring's first view; the next one faces it across the ring.
+        assert run_episode(model, viewspace, 0, SpreadPolicy(), n_views=3).views == [0, 25, 29]
 
 
 def test_random_policy_is_seeded(model):
@@ -256,8 +289,8 @@ def test_policies_other_than_the_oracle_do_not_read_the_ground_truth(model, netw
             for name, v in model.views.items()
         },
     )
-    for name in ("random", "pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph", "hull_sco_probes",
-                 "hull_sco_replan"):  # fmt: skip
+    for name in ("random", "spread", "pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph",
+                 "hull_sco_probes", "hull_sco_replan"):  # fmt: skip
         a = run_episode(model, "original", 27, all_policies(networks, 1)[name])
         b = run_episode(blind, "original", 27, all_policies(networks, 1)[name])
         assert a.views == b.views, name

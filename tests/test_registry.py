@@ -6,7 +6,7 @@ import pytest
 from datagen import SMALL_CAMERA
 
 from nbv.planning.settings import PlannerSettings
-from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
@@ -37,6 +37,7 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
         assert first is not second and first.timings == {} and first.timings is not second.timings
         kinds[name] = type(first)
     assert kinds["random"] is RandomPolicy and kinds["oracle"] is OraclePolicy
+    assert kinds["spread"] is SpreadPolicy
     assert kinds["pcnbv"] is NetworkPolicy and kinds["pcnbv_sph"] is NetworkPolicy
     assert kinds["hull_sco_replan"] is HullSCOReplanPolicy
     for name in ("hull_sco", "hull_sco_sph", "hull_sco_probes"):
@@ -53,7 +54,7 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
 
 def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
-        "random", "oracle", "pcnbv", "pcnbv_sph",
+        "random", "spread", "oracle", "pcnbv", "pcnbv_sph",
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan",
     ]  # fmt: skip
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature"}
@@ -69,7 +70,7 @@ def test_derived_lists_follow_the_entries():
 
 def test_unknown_names_are_refused_with_the_registered_ones():
     assert method("hull_sco") is METHODS["hull_sco"]
-    with pytest.raises(ValueError, match="registered: random, oracle, pcnbv"):
+    with pytest.raises(ValueError, match="registered: random, spread, oracle, pcnbv"):
         method("spread_out")
     with pytest.raises(ValueError, match="allowed: random_cloud, permuted_state, random_hull"):
         check_methods("noise")

@@ -56,6 +56,38 @@ def elevation(viewspace: np.ndarray) -> np.ndarray:
     return np.rad2deg(np.arcsin(np.clip(v[:, 1] / np.linalg.norm(v, axis=1), -1.0, 1.0)))
 
 
+def spread_views(directions: np.ndarray, closed: np.ndarray, count: int) -> list[int]:
+    """``count`` views, not ``closed``, each as far in angle as possible from those before.
+
+    Each pick maximises its smallest angle (at the origin) to the closed views and the earlier
+    picks; ties (cosines equal to 12 decimals, so that symmetric viewspaces tie exactly) go to
+    the lowest index. With nothing closed, the first pick is the lowest index.
+
+    Args:
+        directions: ``(V, 3)`` unit vectors from the origin to the views.
+        closed: ``(V,)`` bool, the views already visited or chosen; not modified.
+        count: number of picks, at most the open views.
+
+    Returns:
+        The picked view indices in order. This is the ``spread`` baseline (each next view
+        farthest in angle from the visited ones, no geometry of the object) and the convex-hull
+        planner's fill once its hull is covered.
+    """
+    closed = np.array(closed, dtype=bool)
+    open_views = ~closed
+    nearest = np.full(len(directions), -np.inf)  # cosine of the smallest angle to a closed view
+    if closed.any():
+        nearest = (directions @ directions[closed].T).max(axis=1)
+    picks: list[int] = []
+    for _ in range(count):
+        candidates = np.flatnonzero(open_views)
+        best = int(candidates[np.argmin(np.round(nearest[candidates], 12))])
+        picks.append(best)
+        open_views[best] = False
+        np.maximum(nearest, directions @ directions[best], out=nearest)
+    return picks
+
+
 def angular_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Angles in degrees between every direction of ``a`` (N, 3) and of ``b`` (M, 3): (N, M)."""
     ua = a / np.linalg.norm(a, axis=1, keepdims=True)

@@ -6,6 +6,7 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from nbv.geometry.viewspace import spread_views
 from nbv.utils.bits import popcount_rows
 
 #: Number of views a plan picks (the paper's 9 after the start view).
@@ -53,32 +54,6 @@ def _as_positions(positions: np.ndarray, n_views: int) -> np.ndarray:
     if not (np.all(np.isfinite(arr)) and np.all(norm > 0.0)):
         raise ValueError("positions must be finite and away from the origin (they give directions)")
     return arr / norm[:, None]
-
-
-def _spread_fill(directions: np.ndarray, closed: np.ndarray, count: int) -> list[int]:
-    """``count`` views, not ``closed``, each as far in angle as possible from those before.
-
-    Each pick maximises its smallest angle (at the origin) to the closed views and the earlier
-    picks; ties (cosines equal to 12 decimals, so that symmetric viewspaces tie exactly) go to
-    the lowest index. With nothing closed, the first pick is the lowest index.
-
-    Args:
-        directions: ``(V, 3)`` unit vectors from the origin to the views.
-        closed: ``(V,)`` bool, the views already visited or chosen; not modified.
-        count: number of picks, at most the open views.
-    """
-    open_views = ~closed
-    nearest = np.full(len(directions), -np.inf)  # cosine of the smallest angle to a closed view
-    if closed.any():
-        nearest = (directions @ directions[closed].T).max(axis=1)
-    picks: list[int] = []
-    for _ in range(count):
-        candidates = np.flatnonzero(open_views)
-        best = int(candidates[np.argmin(np.round(nearest[candidates], 12))])
-        picks.append(best)
-        open_views[best] = False
-        np.maximum(nearest, directions @ directions[best], out=nearest)
-    return picks
 
 
 def greedy_packed(
@@ -137,7 +112,7 @@ def greedy_packed(
             if directions is None:
                 rest = np.flatnonzero(~closed)[:count].tolist()
             else:
-                rest = _spread_fill(directions, closed, count)
+                rest = spread_views(directions, closed, count)
             views += rest
             gains += [0] * len(rest)
             break

@@ -1,4 +1,5 @@
-"""The reference methods: a seeded random view and the oracle (greedy by the true gain)."""
+"""The reference methods: a seeded random view, the geometry-free spread rule, and the oracle
+(greedy by the true gain)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from nbv.dataset.records import score_functions
+from nbv.geometry.viewspace import spread_views
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
@@ -23,6 +25,24 @@ class RandomPolicy:
 
     def __call__(self, state: EpisodeState) -> int:
         return int(self.rng.choice(np.flatnonzero(~state.view_state)))
+
+
+@dataclass
+class SpreadPolicy:
+    """The unvisited view farthest in angle from every visited view (seen from the origin).
+
+    It reads only the camera positions: no cloud, no ground truth. Deterministic; ties go to the
+    lowest index (:func:`nbv.geometry.viewspace.spread_views`). The baseline a geometric method
+    has to beat: on PC-NBV's viewspace it explains most of what covering an object takes.
+    """
+
+    timings: dict[str, list[float]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+
+    def __call__(self, state: EpisodeState) -> int:
+        positions = state.model.views[state.viewspace].poses[:, :3, 3]
+        directions = positions / np.linalg.norm(positions, axis=1, keepdims=True)
+        return spread_views(directions, state.view_state, 1)[0]
 
 
 @dataclass

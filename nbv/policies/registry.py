@@ -16,7 +16,7 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics
 from nbv.planning.settings import PlannerSettings
-from nbv.policies.baselines import OraclePolicy, RandomPolicy
+from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.network import NetworkPolicy
 
@@ -103,6 +103,12 @@ RANDOM = Method(
     lambda ctx, rng: RandomPolicy(rng),
     style=("#7f7f7f", ":"),
 )
+SPREAD = Method(
+    "spread",
+    "the unvisited view farthest in angle from the visited ones (no geometry of the object)",
+    lambda ctx, rng: SpreadPolicy(),
+    style=("#bcbd22", ":"),
+)
 ORACLE = Method(
     "oracle",
     "greedy by the true coverage gain (reads the ground truth: the upper reference)",
@@ -165,6 +171,7 @@ METHODS: dict[str, Method] = {
     m.name: m
     for m in (
         RANDOM,
+        SPREAD,
         ORACLE,
         PCNBV,
         PCNBV_SPH,
