@@ -368,7 +368,8 @@ def shapenet_v2(tmp_path):
 
 
 def test_shapenet_v2_catalogue(shapenet_v2):
-    entries = shapenet_catalogue(shapenet_v2)
+    # Every synset folder with categories=[all], sorted by key ...
+    entries = shapenet_catalogue(shapenet_v2, ["all"])
     assert summary(entries) == [
         ("09999999_x1", "09999999", "shapenet"),
         ("airplane_a1", "airplane", "shapenet"),
@@ -377,7 +378,11 @@ def test_shapenet_v2_catalogue(shapenet_v2):
         ("chair_c2", "chair", "shapenet"),
     ]
     assert entries[3].path == shapenet_v2 / "03001627/c1/models/model_normalized.obj"
-    assert catalogue("shapenet", shapenet_v2) == entries
+    assert catalogue("shapenet", shapenet_v2, ["all"]) == entries
+    # ... and by default only PC-NBV's 16 categories (the unnamed synset is left out).
+    default = shapenet_catalogue(shapenet_v2)
+    assert summary(default) == [s for s in summary(entries) if s[1] != "09999999"]
+    assert catalogue("shapenet", shapenet_v2) == default
 
 
 def test_shapenet_category_selection(shapenet_v2):
@@ -410,6 +415,11 @@ def test_shapenet_catalogue_errors(tmp_path):
     tiny(tmp_path / "chairs" / "a.obj")
     with pytest.raises(CatalogueError, match="no ShapeNet synset folders"):
         shapenet_catalogue(tmp_path)
+    tiny(tmp_path / "09999999" / "x1" / "model.obj")
+    with pytest.raises(CatalogueError, match="no ShapeNet synset folders of the 16 PC-NBV"):
+        shapenet_catalogue(tmp_path)
+    assert [e.key for e in shapenet_catalogue(tmp_path, ["all"])] == ["09999999_x1"]
+    (tmp_path / "09999999" / "x1" / "model.obj").unlink()
     (tmp_path / "03001627" / "m1").mkdir(parents=True)
     with pytest.raises(CatalogueError, match="no ShapeNet models"):
         shapenet_catalogue(tmp_path)

@@ -116,15 +116,21 @@ def _path_keyed_entries(
 def _shapenet_synsets(root: Path, categories: list[str] | None) -> list[tuple[str, str]]:
     """(synset id, category name) pairs to catalogue."""
     names = {synset: name for name, synset in SHAPENET_CATEGORIES.items()}
-    if categories is None:
-        found = sorted(p.name for p in root.iterdir() if p.is_dir() and _SYNSET_RE.match(p.name))
-        if not found:
-            raise CatalogueError(
-                f"{root}: no ShapeNet synset folders (8-digit names such as 03001627) found"
-            )
-        return [(synset, names.get(synset, synset)) for synset in found]
     if isinstance(categories, str):
         categories = [categories]
+    if categories is None or "all" in categories:
+        found = sorted(p.name for p in root.iterdir() if p.is_dir() and _SYNSET_RE.match(p.name))
+        if categories is None:
+            # PC-NBV's 16 categories, in the table's order; a partial download keeps what it has.
+            present = set(found)
+            found = [s for s in SHAPENET_CATEGORIES.values() if s in present]
+        if not found:
+            which = "of the 16 PC-NBV categories " if categories is None else ""
+            raise CatalogueError(
+                f"{root}: no ShapeNet synset folders {which}(8-digit names such as 03001627) "
+                "found; categories=[all] takes every synset folder"
+            )
+        return [(synset, names.get(synset, synset)) for synset in found]
     pairs = []
     for category in categories:
         if category in SHAPENET_CATEGORIES:
@@ -155,7 +161,8 @@ def shapenet_catalogue(
     Args:
         root: the folder holding the synset folders (e.g. ``ShapeNetCore.v2``).
         categories: names from :data:`SHAPENET_CATEGORIES` (``"chair"``) or synset ids
-            (``"03001627"``); None takes every synset folder found.
+            (``"03001627"``), or ``"all"`` for every synset folder found; None takes the 16
+            categories of PC-NBV (:mod:`nbv.assets.categories`) that ``root`` holds.
 
     Returns:
         Entries sorted by key ``<category>_<model_id>``; ``category`` is the name (the synset id
