@@ -14,6 +14,7 @@ import torch
 from datagen import TINY_NET, make_train_dataset
 
 from nbv.models.checkpoints import CheckpointError, load_checkpoint
+from nbv.models.precision import resolve_precision
 from train.config import TrainConfigError, TrainSettings
 from train.loop import run
 from train.metrics import best_view_hits, spearman
@@ -82,6 +83,8 @@ def test_signature_model_trains(tiny_dataset, tmp_path):
     assert np.isfinite(result["best_auc"])
     _, extra = load_checkpoint(tmp_path / "best.pt")
     assert extra["input"] == "signature" and extra["lmax"] == 2
+    # precision=auto is stored resolved: the arithmetic the network was trained in.
+    assert extra["precision"] == resolve_precision("auto", "cpu") in ("fp32", "bf16")
 
 
 def test_bf16_training_is_reproducible_and_recorded(tiny_dataset, tmp_path):

@@ -33,7 +33,7 @@ from nbv.models.checkpoints import CheckpointError, load_checkpoint, save_checkp
 from nbv.models.config import PCNBVConfig
 from nbv.models.inference import for_inference
 from nbv.models.pcnbv import PCNBV
-from nbv.models.precision import autocast, flush_denormals
+from nbv.models.precision import autocast, flush_denormals, resolve_precision
 from nbv.policies.baselines import OraclePolicy, RandomPolicy
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
@@ -220,7 +220,8 @@ def _train(settings: TrainSettings) -> dict:
         "input": settings.input,
         "lmax": lmax,
         "eval_points": settings.eval_points,
-        "precision": settings.precision,
+        # Resolved here: "auto" would be resolved again on the evaluating machine, maybe otherwise.
+        "precision": resolve_precision(settings.precision, device),
         "held_out": settings.held_out,
     }
     row: dict = {}
