@@ -31,13 +31,14 @@ from nbv.dataset.config import ConfigError, Settings
 from nbv.dataset.records import ModelData, ViewData
 from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
 from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
-from nbv.dataset.sources import SourceModel, list_models, load_normalised, stable_seed
+from nbv.dataset.sources import SourceModel, list_models, load_normalised
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.hull import hull_vertices, hull_volume
 from nbv.geometry.scores import covered_mask
 from nbv.geometry.viewspace import get_viewspace
 from nbv.render.backends import render
 from nbv.render.job import RenderError, RenderJob
+from nbv.utils.seeding import named_rng
 
 log = logging.getLogger(__name__)
 
@@ -188,7 +189,7 @@ class _Prepared:
 
 def _prepare(model: SourceModel, settings: Settings, poses: np.ndarray):
     """Normalise the mesh and sample the ground truth: (render job, prepared) of one model."""
-    rng = np.random.default_rng(stable_seed(settings.seed, model.key))
+    rng = named_rng(settings.seed, model.key)
     mesh, center, scale = load_normalised(model, settings.seed)
     gt = sample_surface(mesh, settings.n_gt, rng)
     job = RenderJob(model.key, mesh.vertices, mesh.faces, poses)

@@ -50,10 +50,10 @@ from tqdm import tqdm
 from nbv.dataset.reader import Dataset, DatasetError, shard_files
 from nbv.dataset.records import SCORES, ModelData, score_functions
 from nbv.dataset.schema import write_strings
-from nbv.dataset.sources import stable_seed
 from nbv.geometry.clouds import farthest_points
 from nbv.geometry.sph import signature
 from nbv.utils.atomic import atomic_path
+from nbv.utils.seeding import named_rng
 from nbv.utils.selection import masked_argmax
 
 SCHEMA_VERSION = 1
@@ -126,7 +126,7 @@ def model_samples(model: ModelData, score: str, settings: SampleSettings) -> dic
     """All samples of one model for one score (see the module docstring), as arrays."""
     view = model.views[settings.viewspace]
     n_views = len(view.poses)
-    rng = np.random.default_rng(stable_seed(settings.seed, f"{model.key}/{score}"))
+    rng = named_rng(settings.seed, f"{model.key}/{score}")
     # A trajectory starts where the object is seen (a flat object seen edge-on shows nothing).
     seen = np.flatnonzero(np.diff(view.offsets) > 0)
     starts = rng.choice(seen, size=min(settings.trajectories, len(seen)), replace=False)

@@ -20,7 +20,7 @@ from nbv.assets.categories import SHAPENET_TRAIN_CATEGORIES
 from nbv.assets.meshes import Mesh, load_mesh, normalise, validate_mesh
 from nbv.assets.synthetic import SyntheticEntry, build
 from nbv.assets.synthetic import catalogue as synthetic_catalogue
-from nbv.utils.seeding import seed_sequence
+from nbv.utils.seeding import named_rng
 
 SOURCES = ("synthetic", "shapenet", "stanford", "linemod", "homebrew", "folder")
 
@@ -44,11 +44,6 @@ class SourceModel:
     source: str
     source_path: str
     synthetic: SyntheticEntry | None = None
-
-
-def stable_seed(seed: int, name: str) -> np.random.SeedSequence:
-    """A seed sequence for ``name`` under ``seed``, the same in every process and run."""
-    return seed_sequence(seed, name)
 
 
 def assign_splits(
@@ -111,7 +106,7 @@ def list_models(
     if source == "shapenet":
         for name in SHAPENET_TRAIN_CATEGORIES:
             keys = [e.key for e in entries if e.category == name]
-            rng = np.random.default_rng(stable_seed(seed, name))
+            rng = named_rng(seed, name)
             split.update(assign_splits(keys, split_fractions or {}, rng))
     return [SourceModel(e.key, e.category, split[e.key], source, str(e.path)) for e in entries]
 
