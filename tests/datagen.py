@@ -52,10 +52,11 @@ TINY_NET = dict(
 
 
 def make_train_dataset(out: Path) -> Path:
-    """One synthetic model per training category, ray cast at 48 x 36, with coverage samples."""
+    """One train and one valid synthetic model per training category, ray cast at 48 x 36, with
+    coverage samples."""
     settings = Settings(
         out_dir=out,
-        counts={"train": 1, "valid": 0, "test": 0, "unseen": 0},
+        counts={"train": 1, "valid": 1, "test": 0, "unseen": 0},
         intrinsics=Intrinsics.centred(48, 36, 36.0),
         n_gt=1024,
         points_per_view=64,
@@ -63,7 +64,7 @@ def make_train_dataset(out: Path) -> Path:
         progress=False,
     )
     summary = generate(settings)
-    assert summary.produced == 8
+    assert summary.produced == 16
     write_samples(
         summary.shard_file,
         SampleSettings(trajectories=2, steps=4, n_points=64, lmax=2, scores=("coverage",)),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import subprocess
 import sys
 from dataclasses import replace
@@ -13,10 +14,12 @@ import pytest
 import torch
 from datagen import TINY_NET, make_train_dataset
 
+import nbv.dataset
+from nbv.dataset.samples import SampleSet
 from nbv.models.checkpoints import CheckpointError, load_checkpoint
 from nbv.models.precision import resolve_precision
 from train.config import TrainConfigError, TrainSettings
-from train.loop import run
+from train.loop import run, split_samples
 from train.metrics import best_view_hits, spearman
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,9 +60,23 @@ def test_training_runs_checkpoints_and_resumes(tiny_dataset, tmp_path):
     assert [int(r["epoch"]) for r in rows] == [1, 2]
     for column in ("train_loss", "val_loss", "val_spearman", "val_best_view_hits", "val_auc"):
         assert np.isfinite(float(rows[-1][column]))
-    assert 0 < result["random_auc"] < result["oracle_auc"] <= 1
+    heldout = result["heldout_auc"]
+    assert 0 < heldout["random"] < heldout["oracle"] <= 1 and heldout["spread"] <= heldout["oracle"]
     model, extra = load_checkpoint(tmp_path / "a" / "best.pt", n_views=33)
     assert extra["held_out"] == "chair" and extra["input"] == "points"
+    # best.pt was chosen on the valid models of the other seven categories; the held-out
+    # category is scored once, with that checkpoint, on all of its models.
+    ds = nbv.dataset.open(tiny_dataset)
+    assert sorted(ds.index[k][1] for k in extra["selection_keys"]) == sorted(
+        c for c in settings.categories if c != "chair"
+    )
+    assert all(ds.index[k][2] == "valid" for k in extra["selection_keys"])
+    scored = json.loads((tmp_path / "a" / "heldout.json").read_text())
+    chair = ds.keys(category="chair")
+    assert scored["episodes"] == [[k, s] for k in chair for s in settings.start_views]
+    assert scored["random_repeats"] == 10
+    assert scored["checkpoint"]["epoch"] == extra["epoch"]
+    assert set(scored["auc"]) == {"network", "random", "spread", "oracle"}
     assert extra["settings"]["fold"] == 3 and len(extra["dataset_identity"]) == 16
     assert list((tmp_path / "a" / "tb").iterdir())
     # Resuming to 3 epochs equals training 3 epochs straight.
@@ -78,9 +95,79 @@ def test_training_runs_checkpoints_and_resumes(tiny_dataset, tmp_path):
         assert torch.equal(pa, pb), name
 
 
+def test_a_changed_setting_stops_a_resume(tiny_dataset, tmp_path):
+    settings = tiny_settings(tiny_dataset, tmp_path, epochs=1)
+    run(settings)
+    for change, key in [
+        (dict(lr=2e-3), "lr"), (dict(seed=1), "seed"), (dict(train_points=16), "train_points"),
+        (dict(batch_size=4), "batch_size"), (dict(precision="bf16"), "precision"),
+        (dict(start_views=(1, 3)), "start_views"), (dict(l2=0.0), "l2"),
+    ]:  # fmt: skip
+        with pytest.raises(TrainConfigError, match=rf"{key} \(.*resume=false"):
+            run(replace(settings, epochs=2, **change))
+    # Regenerated samples (other bytes) stop it too.
+    samples = next(tiny_dataset.glob("samples-*.h5"))
+    backup = samples.read_bytes()
+    try:
+        import h5py
+
+        with h5py.File(samples, "a") as handle:
+            handle.attrs["touched"] = 1
+        with pytest.raises(TrainConfigError, match="samples_identity"):
+            run(replace(settings, epochs=2))
+    finally:
+        samples.write_bytes(backup)
+    # Training on (more epochs) with the same settings is a resumption, not a change.
+    run(replace(settings, epochs=2))
+    # resume=false starts afresh: the result equals a run in a new folder.
+    run(replace(settings, lr=2e-3, resume=False))
+    run(replace(settings, lr=2e-3, out_dir=tmp_path / "fresh"))
+    assert [r["epoch"] for r in read_csv(tmp_path / "metrics.csv")] == ["1"]
+    a, _ = load_checkpoint(tmp_path / "last.pt")
+    b, _ = load_checkpoint(tmp_path / "fresh" / "last.pt")
+    for (name, pa), pb in zip(a.state_dict().items(), b.state_dict().values(), strict=True):
+        assert torch.equal(pa, pb), name
+
+
+def test_select_last_keeps_the_last_epoch(tiny_dataset, tmp_path):
+    run(tiny_settings(tiny_dataset, tmp_path, epochs=2, select="last", eval_every=5))
+    _, extra = load_checkpoint(tmp_path / "best.pt")
+    assert extra["epoch"] == 1 and extra["select"] == "last" and extra["selection_keys"] == []
+
+
+def _samples(rows: list[tuple[str, str]]) -> SampleSet:
+    n = len(rows)
+    return SampleSet(
+        points=np.zeros((n, 4, 3)), signature=np.zeros((n, 4, 3)),
+        view_state=np.zeros((n, 5), bool), target=np.zeros((n, 5)), value=np.zeros(n),
+        trajectory=np.zeros(n, int), step=np.arange(n),
+        key=np.array([f"{c}/{s}{i}" for i, (c, s) in enumerate(rows)]),
+        category=np.array([c for c, _ in rows]), split=np.array([s for _, s in rows]),
+    )  # fmt: skip
+
+
+def test_fold_filter_keeps_held_out_and_unseen_categories_out(tmp_path):
+    rows = [
+        (c, s) for c in ("chair", "car", "lamp", "bus", "bed") for s in ("train", "valid", "test")
+    ]
+    train, val = split_samples(_samples(rows), tiny_settings(tmp_path, tmp_path, fold=3))
+    # Fold 3 holds out chair; bus and bed are unseen categories (not training ones).
+    pairs = sorted(zip(train.category, train.split, strict=True))
+    assert pairs == [("car", "train"), ("lamp", "train")]
+    pairs = sorted(zip(val.category, val.split, strict=True))
+    assert pairs == [("car", "valid"), ("lamp", "valid")]
+    no_valid = [r for r in rows if r[1] != "valid"]
+    with pytest.raises(ValueError, match="select=last"):
+        split_samples(_samples(no_valid), tiny_settings(tmp_path, tmp_path, fold=3))
+    train, val = split_samples(
+        _samples(no_valid), tiny_settings(tmp_path, tmp_path, fold=3, select="last")
+    )
+    assert len(train) == 2 and len(val) == 0
+
+
 def test_signature_model_trains(tiny_dataset, tmp_path):
     result = run(tiny_settings(tiny_dataset, tmp_path, input="signature", epochs=1))
-    assert np.isfinite(result["best_auc"])
+    assert np.isfinite(result["best_val_auc"])
     _, extra = load_checkpoint(tmp_path / "best.pt")
     assert extra["input"] == "signature" and extra["lmax"] == 2
     # precision=auto is stored resolved: the arithmetic the network was trained in.
@@ -129,7 +216,7 @@ def test_missing_samples_and_bad_checkpoints_stop_before_training(tiny_dataset, 
         run(tiny_settings(tiny_dataset, out))
     other = tmp_path / "other"
     run(tiny_settings(tiny_dataset, other, epochs=1))
-    with pytest.raises(CheckpointError, match="another network"):
+    with pytest.raises(TrainConfigError, match="net"):
         run(tiny_settings(tiny_dataset, other, epochs=2, net={**TINY_NET, "fc_channels": [16]}))
 
 

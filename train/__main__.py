@@ -7,12 +7,14 @@ refused setting ends with one line on stderr and exit status 2, and leaves no ru
 (:mod:`nbv.config.cli`).
 """
 
+import dataclasses
 import json
 import logging
 from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from nbv.config.cli import entry_point, refuse
@@ -30,11 +32,16 @@ log = logging.getLogger("train")
 def main(cfg: DictConfig) -> None:
     try:
         settings = settings_from_config(cfg)
+        hc = HydraConfig.get()
+        job_dir = Path(hc.runtime.output_dir)
+        given = any(o.split("=", 1)[0].lstrip("+~") == "out_dir" for o in hc.overrides.task)
+        if hc.mode == RunMode.MULTIRUN and not given:
+            # The default out_dir has no time in it: two sweeps would resume each other's runs.
+            settings = dataclasses.replace(settings, out_dir=job_dir)
         # torch loads only for a run that goes ahead: a refused one answers at once.
         from train.loop import run
 
         # Point hydra's job folder at the run folder, so `train.summary <sweep dir>` finds it.
-        job_dir = Path(HydraConfig.get().runtime.output_dir)
         job_dir.mkdir(parents=True, exist_ok=True)
         out_dir = str(settings.out_dir.resolve())
         (job_dir / RUN_FILE).write_text(json.dumps({"out_dir": out_dir}))

@@ -31,6 +31,9 @@ from nbv.policies.episode import DEFAULT_START_VIEWS
 SCORES = ("coverage", "vig")
 INPUTS = ("points", "signature")
 DEVICES = ("auto", "cpu", "cuda")
+#: How the evaluated checkpoint (best.pt) is chosen: by the validation AUC on the valid split of
+#: the fold's training categories, or the last epoch. Never on the held-out category.
+SELECTIONS = ("valid", "last")
 
 #: The error of a setting that cannot be used (one class for every entry point).
 TrainConfigError = ConfigError
@@ -77,6 +80,9 @@ class TrainSettings:
     device: str = "auto"
     threads: int = 0
     progress: bool = True
+    select: str = "valid"
+    resume: bool = True
+    random_repeats: int = 10
     categories: tuple[str, ...] = TRAIN_CATEGORIES
 
     def __post_init__(self) -> None:
@@ -93,6 +99,8 @@ class TrainSettings:
             ("eval_every", self.eval_every >= 1, "an integer >= 1"),
             ("device", self.device in DEVICES, f"one of {', '.join(DEVICES)}"),
             ("precision", self.precision in PRECISIONS, f"one of {', '.join(PRECISIONS)}"),
+            ("select", self.select in SELECTIONS, f"one of {', '.join(SELECTIONS)}"),
+            ("random_repeats", self.random_repeats >= 1, "an integer >= 1"),
         ]
         for key, ok, allowed in checks:
             if not ok:
@@ -149,6 +157,9 @@ class TrainConfig:
     device: str = MISSING
     threads: int = MISSING
     progress: bool = MISSING
+    select: str = MISSING
+    resume: bool = MISSING
+    random_repeats: int = MISSING
     out_dir: str = MISSING
     score: ScoreConfig = field(default_factory=ScoreConfig)
     model: ModelConfig = field(default_factory=ModelConfig)

@@ -3,14 +3,18 @@
 Per epoch: a seeded shuffle of the training samples, batches of ``batch_size``, each cloud a seeded
 random subset of ``train_points`` of its stored points (the signature is used whole), loss = sum
 of squared errors over the V outputs (mean over the batch) + ``l2`` times the squared weights.
-Then the validation loss, Spearman correlation and best-view hits on the held-out category's
-samples, and every ``eval_every`` epochs (and at the last) the reconstruction metric: coverage by
-view and AUC of the network's episodes from ``start_views`` on the held-out category's models.
+Then the validation loss, Spearman correlation and best-view hits on the samples of the *valid*
+split of the fold's training categories, and every ``eval_every`` epochs (and at the last) the
+reconstruction metric there: coverage by view and AUC of the network's episodes from
+``start_views`` on those models. The held-out category takes no part in training or in choosing
+the checkpoint: it is scored once, at the end, with the chosen one (:mod:`train.heldout`).
 
-``out_dir`` gets ``last.pt`` (every epoch, with the optimizer state, for resuming), ``best.pt``
-(best validation AUC), ``metrics.csv``, ``reference.json`` (random and oracle on the same
-episodes) and TensorBoard logs in ``tb/``. Every random draw of an epoch comes from
-``(seed, epoch)``, so a resumed run continues exactly as an uninterrupted one would.
+``out_dir`` gets ``last.pt`` (every epoch, with the optimizer state and the run's identity, for
+resuming: :mod:`train.resume`), ``best.pt`` (``select=valid``: the best validation AUC;
+``select=last``: the last epoch), ``metrics.csv``, ``heldout.json`` (the held-out category's
+episodes of best.pt, random, spread and the oracle) and TensorBoard logs in ``tb/``. Every random
+draw of an epoch comes from ``(seed, epoch)``, so a resumed run continues exactly as an
+uninterrupted one would.
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import logging
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -27,19 +32,22 @@ import torch
 from tqdm import tqdm
 
 import nbv.dataset
-from nbv.dataset.reader import DatasetError
-from nbv.dataset.samples import SampleSet, load_samples
+from nbv.dataset.reader import DatasetError, shard_files
+from nbv.dataset.samples import SampleSet, load_samples, samples_path
 from nbv.models.checkpoints import CheckpointError, load_checkpoint, save_checkpoint
 from nbv.models.config import PCNBVConfig
 from nbv.models.inference import for_inference
 from nbv.models.pcnbv import PCNBV
 from nbv.models.precision import autocast, flush_denormals, resolve_precision
-from nbv.policies.baselines import OraclePolicy, RandomPolicy
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
-from nbv.utils.atomic import atomic_path
+from nbv.utils.atomic import atomic_path, write_text
 from train.config import TrainSettings
+from train.heldout import HELDOUT_FILE, score_heldout
 from train.metrics import best_view_hits, spearman
+from train.resume import check_resumable, clear_run, file_digest, run_identity
+
+log = logging.getLogger(__name__)
 
 
 def choose_device(name: str) -> torch.device:
@@ -59,19 +67,35 @@ def dataset_identity(folder: Path) -> str:
 
 
 def split_samples(samples: SampleSet, settings: TrainSettings) -> tuple[SampleSet, SampleSet]:
-    """(training, validation) samples of a fold."""
-    known = np.isin(samples.category, settings.categories)
-    train = samples.select(
-        known & (samples.split == "train") & (samples.category != settings.held_out)
-    )
-    val = samples.select(samples.category == settings.held_out)
-    if len(train) == 0 or len(val) == 0:
+    """(training, validation) samples of a fold: the train and the valid split of the fold's
+    training categories. The held-out category is in neither.
+
+    Raises:
+        DatasetError: no training samples, or no validation samples with ``select=valid``.
+    """
+    known = np.isin(samples.category, settings.categories) & (samples.category != settings.held_out)
+    train = samples.select(known & (samples.split == "train"))
+    val = samples.select(known & (samples.split == "valid"))
+    if len(train) == 0 or (len(val) == 0 and settings.select == "valid"):
         raise DatasetError(
             f"{settings.dataset}: fold {settings.fold} has {len(train)} training and {len(val)} "
-            f"validation samples (held-out category {settings.held_out!r}; categories present: "
-            f"{sorted(set(samples.category))}); make a dataset with the training categories"
+            f"validation samples (train and valid splits of the training categories but "
+            f"{settings.held_out!r}; categories present: {sorted(set(samples.category))}); make "
+            "a dataset with the training categories and a valid split, or set select=last"
         )
     return train, val
+
+
+def fold_keys(dataset, settings: TrainSettings) -> tuple[list[str], list[str]]:
+    """(selection, held-out) model keys of a fold: the valid split of the training categories
+    but the held-out one (episodes that choose best.pt), and every model of the held-out
+    category (scored once at the end)."""
+    selection = [
+        k
+        for k in dataset.keys(split="valid")
+        if dataset.index[k][1] in settings.categories and dataset.index[k][1] != settings.held_out
+    ]
+    return selection, dataset.keys(category=settings.held_out)
 
 
 def batch_inputs(
@@ -132,21 +156,21 @@ def episodes_metric(dataset, keys: list[str], policy, start_views) -> np.ndarray
     return np.array(out)
 
 
-def _resume(out_dir: Path, settings: TrainSettings, identity: str, model, optimizer, scheduler):
-    """Load ``last.pt`` when present; returns (next epoch, best AUC)."""
+def _resume(out_dir: Path, identity: dict, model, optimizer, scheduler) -> tuple[int, float]:
+    """Load ``last.pt`` when present; returns (next epoch, best validation AUC).
+
+    Raises:
+        TrainConfigError: ``last.pt`` was made with other settings, data or samples.
+    """
     last = out_dir / "last.pt"
     if not last.exists():
         return 0, -np.inf
     saved, extra = load_checkpoint(last, n_views=model.config.n_views)
-    if extra.get("dataset_identity") != identity:
+    check_resumable(out_dir, extra.get("run_identity"), identity)
+    if saved.config != model.config:
         raise CheckpointError(
-            f"checkpoint {last} was trained on another dataset ({extra.get('dataset_identity')} "
-            f"vs {identity}); delete {out_dir} or set out_dir=... to start afresh"
-        )
-    if saved.config != model.config or extra.get("settings", {}).get("input") != settings.input:
-        raise CheckpointError(
-            f"checkpoint {last} holds another network ({saved.config}); delete {out_dir} or set "
-            "out_dir=... to start afresh"
+            f"checkpoint {last} holds another network ({saved.config}); set out_dir=... or "
+            "resume=false to start afresh"
         )
     model.load_state_dict(saved.state_dict())
     opt = extra["optimizer"]
@@ -171,6 +195,49 @@ def run(settings: TrainSettings) -> dict:
         return _train(settings)
 
 
+def samples_identity(settings: TrainSettings) -> str:
+    """Hash of the samples files of the dataset (one per shard)."""
+    folder = Path(settings.dataset)
+    files = [folder] if folder.is_file() else [samples_path(f) for f in shard_files(folder)]
+    return file_digest([f for f in files if f.exists()])
+
+
+def _network_policy(model: PCNBV, settings: TrainSettings, lmax: int) -> NetworkPolicy:
+    return NetworkPolicy(
+        for_inference(model, settings.precision), settings.input, settings.eval_points, lmax,
+        settings.precision,
+    )  # fmt: skip
+
+
+def _heldout(out_dir: Path, dataset, keys: list[str], settings: TrainSettings, n_views: int):
+    """``heldout.json`` of ``best.pt``: read back when it belongs to this best.pt, else scored."""
+    best = out_dir / "best.pt"
+    _, extra = load_checkpoint(best, n_views=n_views)
+    stamp = {"epoch": int(extra["epoch"]), "select": settings.select,
+             "random_repeats": settings.random_repeats}  # fmt: skip
+    path = out_dir / HELDOUT_FILE
+    if path.exists():
+        saved = json.loads(path.read_text())
+        if saved.get("checkpoint") == stamp and saved.get("start_views") == list(
+            settings.start_views
+        ):
+            return saved
+    log.info("scoring best.pt (epoch %d) on the held-out category %s (%d models)",
+             stamp["epoch"] + 1, settings.held_out, len(keys))  # fmt: skip
+    result = score_heldout(
+        dataset, keys, settings.start_views, NetworkPolicy.from_checkpoint(best, n_views=n_views),
+        settings.seed, settings.random_repeats, settings.progress,
+    )  # fmt: skip
+    result.update(
+        checkpoint=stamp,
+        start_views=list(settings.start_views),
+        held_out=settings.held_out,
+        selection_keys=extra.get("selection_keys"),
+    )
+    write_text(path, json.dumps(result, indent=1))
+    return result
+
+
 def _train(settings: TrainSettings) -> dict:
     if settings.threads:
         torch.set_num_threads(settings.threads)
@@ -178,8 +245,10 @@ def _train(settings: TrainSettings) -> dict:
     samples = load_samples(settings.dataset, settings.score)
     train, val = split_samples(samples, settings)
     dataset = nbv.dataset.open(settings.dataset)
-    identity = dataset_identity(settings.dataset)
-    val_keys = dataset.keys(category=settings.held_out)
+    selection_keys, heldout_keys = fold_keys(dataset, settings)
+    identity = run_identity(
+        settings, dataset_identity(settings.dataset), samples_identity(settings)
+    )
     n_views = samples.view_state.shape[1]
     lmax = int(samples.attrs.get("lmax", 3))
 
@@ -192,23 +261,15 @@ def _train(settings: TrainSettings) -> dict:
     )
     out_dir = settings.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
-    first_epoch, best_auc = _resume(out_dir, settings, identity, model, optimizer, scheduler)
+    if not settings.resume:
+        deleted = clear_run(out_dir)
+        if deleted:
+            log.info("resume=false: deleted %s of %s", ", ".join(deleted), out_dir)
+    first_epoch, best_auc = _resume(out_dir, identity, model, optimizer, scheduler)
+    if first_epoch:
+        log.info("resuming %s at epoch %d", out_dir, first_epoch + 1)
     plain = {**_plain_settings(settings), "held_out": settings.held_out}
-    (out_dir / "settings.json").write_text(json.dumps(plain, indent=1))
-
-    reference_file = out_dir / "reference.json"
-    if not reference_file.exists():
-        reference = {
-            "random": episodes_metric(
-                dataset, val_keys, RandomPolicy(np.random.default_rng(settings.seed)),
-                settings.start_views,
-            ).mean(axis=0).tolist(),
-            "oracle": episodes_metric(
-                dataset, val_keys, OraclePolicy("coverage"), settings.start_views
-            ).mean(axis=0).tolist(),
-        }  # fmt: skip
-        reference_file.write_text(json.dumps(reference, indent=1))
-    reference = json.loads(reference_file.read_text())
+    write_text(out_dir / "settings.json", json.dumps(plain, indent=1))
 
     from torch.utils.tensorboard import SummaryWriter
 
@@ -216,13 +277,17 @@ def _train(settings: TrainSettings) -> dict:
     metrics_file = out_dir / "metrics.csv"
     extra_base = {
         "settings": _plain_settings(settings),
-        "dataset_identity": identity,
+        "run_identity": identity,
+        "dataset_identity": identity["dataset_identity"],
         "input": settings.input,
         "lmax": lmax,
         "eval_points": settings.eval_points,
         # Resolved here: "auto" would be resolved again on the evaluating machine, maybe otherwise.
         "precision": resolve_precision(settings.precision, device),
         "held_out": settings.held_out,
+        "select": settings.select,
+        # The models whose episodes chose this checkpoint: nbv.eval leaves them out.
+        "selection_keys": selection_keys if settings.select == "valid" else [],
     }
     row: dict = {}
     for epoch in range(first_epoch, settings.epochs):
@@ -256,33 +321,34 @@ def _train(settings: TrainSettings) -> dict:
                 loss=f"{np.mean(losses[-20:]):.4f}", sps=f"{len(index) / (t2 - t0):.0f}"
             )
         scheduler.step()
-        pred, val_loss = predict(model, val, settings, device)
         row = {
             "epoch": epoch + 1,
             "lr": optimizer.param_groups[0]["lr"],
             "train_loss": float(np.mean(losses)),
-            "val_loss": val_loss,
-            "val_spearman": spearman(pred, val.target, val.view_state),
-            "val_best_view_hits": best_view_hits(pred, val.target, val.view_state),
             "samples_per_s": len(train) / max(load_time + step_time, 1e-9),
             "load_fraction": load_time / max(load_time + step_time, 1e-9),
         }
-        if (epoch + 1) % settings.eval_every == 0 or epoch + 1 == settings.epochs:
-            policy = NetworkPolicy(
-                for_inference(model, settings.precision),
-                settings.input,
-                settings.eval_points,
-                lmax,
-                settings.precision,
+        if len(val):
+            pred, val_loss = predict(model, val, settings, device)
+            row.update(
+                val_loss=val_loss,
+                val_spearman=spearman(pred, val.target, val.view_state),
+                val_best_view_hits=best_view_hits(pred, val.target, val.view_state),
             )
-            curve = episodes_metric(dataset, val_keys, policy, settings.start_views).mean(axis=0)
+        last_epoch = epoch + 1 == settings.epochs
+        if selection_keys and ((epoch + 1) % settings.eval_every == 0 or last_epoch):
+            policy = _network_policy(model, settings, lmax)
+            curve = episodes_metric(dataset, selection_keys, policy, settings.start_views)
+            curve = curve.mean(axis=0)
             row["val_auc"] = auc(curve)
             row.update({f"val_cov_{i + 1}": float(c) for i, c in enumerate(curve)})
-            if row["val_auc"] > best_auc:
-                best_auc = row["val_auc"]
-                save_checkpoint(
-                    out_dir / "best.pt", model, {**extra_base, "epoch": epoch, "metrics": row}
-                )
+        chosen = last_epoch if settings.select == "last" else row.get("val_auc", -np.inf) > best_auc
+        if settings.select == "valid" and "val_auc" in row:
+            best_auc = max(best_auc, row["val_auc"])
+        if chosen:
+            save_checkpoint(
+                out_dir / "best.pt", model, {**extra_base, "epoch": epoch, "metrics": row}
+            )
         for name, value in row.items():
             if name != "epoch":
                 writer.add_scalar(name, value, epoch + 1)
@@ -296,12 +362,13 @@ def _train(settings: TrainSettings) -> dict:
              "optimizer": opt, "scheduler": scheduler.state_dict()},
         )  # fmt: skip
     writer.close()
+    heldout = _heldout(out_dir, dataset, heldout_keys, settings, n_views)
+    means = {m: float(np.mean(v)) for m, v in heldout["auc"].items()}
     return {
-        "best_auc": best_auc,
+        "best_val_auc": best_auc if np.isfinite(best_auc) else None,
+        "selected_epoch": heldout["checkpoint"]["epoch"] + 1,
         "last": row,
-        "reference": reference,
-        "random_auc": auc(reference["random"]),
-        "oracle_auc": auc(reference["oracle"]),
+        "heldout_auc": means,
     }
 
 

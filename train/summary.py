@@ -1,18 +1,25 @@
 """``python -m train.summary <sweep dir or runs dir> [--out DIR]``: the cross-validation table.
 
 Finds every training run under the folder (a hydra sweep folder, whose jobs point at their run
-folders through ``run.json``, or a folder of run folders such as ``outputs/train``), and writes:
+folders through ``run.json``, or a folder of run folders such as ``outputs/train``) and reads each
+run's ``heldout.json``: the held-out category's episodes of the checkpoint the run chose without
+that category (:mod:`train.heldout`), with random (averaged over seeds), spread and the oracle on
+the same episodes. It writes:
 
-* ``cv_table.csv`` and ``cv_table.md``: the best validation AUC of each fold, with mean and
-  standard deviation, per score and model (random and oracle on the same episodes beside them);
-* ``cv_coverage_by_view.png``: the validation coverage by view at each run's best epoch, averaged
-  over the folds (the paper's Fig. 12).
+* ``cv_table.md`` and ``cv_table.csv``: per model and score, each fold's held-out AUC with its
+  95 % bootstrap interval (models resampled), then over all folds' episodes the network, random,
+  spread and the oracle, and the paired differences network - spread and network - random with
+  their intervals;
+* ``cv_folds.csv``: one row per run (fold), the same numbers;
+* ``cv_coverage_by_view.png``: the held-out coverage by view averaged over the folds, with random,
+  spread and the oracle (the paper's Fig. 12).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import logging
 from collections import defaultdict
@@ -24,95 +31,183 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from nbv.policies.episode import auc  # noqa: E402
+from nbv.utils.atomic import write_text  # noqa: E402
+from nbv.utils.markdown import md_table  # noqa: E402
+from nbv.utils.stats import bootstrap_mean  # noqa: E402
+from train.heldout import HELDOUT_FILE, HELDOUT_METHODS  # noqa: E402
 
 log = logging.getLogger(__name__)
 
+#: Seed of every bootstrap interval of the summary.
+SEED = 0
+
 
 def find_runs(folder: Path) -> list[Path]:
-    """Run folders (holding ``metrics.csv``) under ``folder``, directly or through ``run.json``."""
-    runs = {p.parent.resolve() for p in folder.rglob("metrics.csv")}
+    """Run folders (holding ``heldout.json``) under ``folder``, directly or through ``run.json``."""
+    runs = {p.parent.resolve() for p in folder.rglob(HELDOUT_FILE)}
     for pointer in folder.rglob("run.json"):
         target = Path(json.loads(pointer.read_text())["out_dir"])
-        if (target / "metrics.csv").exists():
+        if (target / HELDOUT_FILE).exists():
             runs.add(target.resolve())
     return sorted(runs)
 
 
-def read_run(run: Path) -> dict | None:
-    """Model, score, fold, best AUC and its coverage curve of one run (None if never evaluated)."""
-    with open(run / "metrics.csv", newline="") as handle:
-        rows = [r for r in csv.DictReader(handle) if r.get("val_auc")]
-    if not rows:
-        return None
-    best = max(rows, key=lambda r: float(r["val_auc"]))
+def read_run(run: Path) -> dict:
+    """Model, score, fold, the chosen epoch and the held-out episodes of one run folder."""
     settings = json.loads((run / "settings.json").read_text())
-    reference = json.loads((run / "reference.json").read_text())
-    curve = [float(best[f"val_cov_{i}"]) for i in range(1, 11) if best.get(f"val_cov_{i}")]
+    heldout = json.loads((run / HELDOUT_FILE).read_text())
     return {
+        "run": str(run),
         "model": settings["model_name"],
         "score": settings["score"],
         "fold": int(settings["fold"]),
-        "held_out": settings["held_out"],
-        "best_epoch": int(best["epoch"]),
-        "auc": float(best["val_auc"]),
-        "curve": curve,
-        "random_auc": auc(reference["random"]),
-        "oracle_auc": auc(reference["oracle"]),
-        "random_curve": reference["random"],
-        "oracle_curve": reference["oracle"],
+        "held_out": heldout["held_out"],
+        "select": heldout["checkpoint"]["select"],
+        "epoch": int(heldout["checkpoint"]["epoch"]) + 1,
+        "keys": [f"{heldout['held_out']}/{k}" for k, _ in heldout["episodes"]],
+        "auc": {m: np.asarray(heldout["auc"][m]) for m in HELDOUT_METHODS},
+        "coverage": {m: np.asarray(heldout["coverage"][m]) for m in HELDOUT_METHODS},
+        "random_repeats": int(heldout["random_repeats"]),
+    }
+
+
+def _stats(keys: list[str], auc: dict[str, np.ndarray]) -> dict:
+    """Means and intervals of the network and the paired differences over the given episodes."""
+    net = auc["network"]
+    return {
+        "network": bootstrap_mean(net, keys, SEED),
+        **{m: float(np.mean(auc[m])) for m in HELDOUT_METHODS[1:]},
+        "minus_spread": bootstrap_mean(net - auc["spread"], keys, SEED),
+        "minus_random": bootstrap_mean(net - auc["random"], keys, SEED),
     }
 
 
 def summarise(folder: Path, out: Path) -> list[dict]:
-    """Write the table and plot for every run under ``folder`` into ``out``; returns the rows."""
-    runs = [r for r in (read_run(p) for p in find_runs(folder)) if r is not None]
+    """Write the tables and the plot for every run under ``folder`` into ``out``.
+
+    Returns:
+        One dict per (model, score): ``folds`` (per-fold stats) and ``all`` (pooled stats).
+
+    Raises:
+        SystemExit: no run under ``folder`` has a ``heldout.json``.
+    """
+    runs = [read_run(p) for p in find_runs(folder)]
     if not runs:
-        raise SystemExit(f"train.summary: no evaluated training runs under {folder}")
+        raise SystemExit(
+            f"train.summary: no finished training runs (with {HELDOUT_FILE}) under {folder}"
+        )
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for r in runs:
         groups[(r["model"], r["score"])].append(r)
     out.mkdir(parents=True, exist_ok=True)
-    rows = []
+    results, fold_rows = [], []
     for (model, score), items in sorted(groups.items()):
         items.sort(key=lambda r: r["fold"])
-        aucs = np.array([r["auc"] for r in items])
-        row = {"model": model, "score": score, "folds": len(items)}
-        row.update({f"fold{r['fold']}_{r['held_out']}": round(r["auc"], 4) for r in items})
-        row.update(
-            auc_mean=round(float(aucs.mean()), 4),
-            auc_std=round(float(aucs.std()), 4),
-            random_auc_mean=round(float(np.mean([r["random_auc"] for r in items])), 4),
-            oracle_auc_mean=round(float(np.mean([r["oracle_auc"] for r in items])), 4),
-        )
-        rows.append(row)
-    columns = list(dict.fromkeys(k for r in rows for k in r))
-    with open(out / "cv_table.csv", "w", newline="") as handle:
-        writer = csv.DictWriter(handle, columns)
-        writer.writeheader()
-        writer.writerows(rows)
-    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
-    lines += ["| " + " | ".join(str(r.get(c, "")) for c in columns) + " |" for r in rows]
-    (out / "cv_table.md").write_text("\n".join(lines) + "\n")
+        per_fold = [(r, _stats(r["keys"], r["auc"])) for r in items]
+        keys = [k for r in items for k in r["keys"]]
+        pooled = {m: np.concatenate([r["auc"][m] for r in items]) for m in HELDOUT_METHODS}
+        results.append({"model": model, "score": score, "runs": items, "folds": per_fold,
+                        "all": _stats(keys, pooled)})  # fmt: skip
+        for r, st in per_fold:
+            fold_rows.append({
+                "model": model, "score": score, "fold": r["fold"], "held_out": r["held_out"],
+                "select": r["select"], "epoch": r["epoch"], "episodes": len(r["keys"]),
+                "auc": st["network"].mean, "auc_low": st["network"].low,
+                "auc_high": st["network"].high, "random": st["random"], "spread": st["spread"],
+                "oracle": st["oracle"], "minus_spread": st["minus_spread"].mean,
+                "minus_spread_low": st["minus_spread"].low,
+                "minus_spread_high": st["minus_spread"].high,
+                "minus_random": st["minus_random"].mean,
+                "minus_random_low": st["minus_random"].low,
+                "minus_random_high": st["minus_random"].high,
+            })  # fmt: skip
+    _write_csv(out / "cv_folds.csv", fold_rows)
+    _write_csv(out / "cv_table.csv", [
+        {"model": g["model"], "score": g["score"], "folds": len(g["runs"]),
+         "episodes": g["all"]["network"].n, "auc": g["all"]["network"].mean,
+         "auc_low": g["all"]["network"].low, "auc_high": g["all"]["network"].high,
+         "random": g["all"]["random"], "spread": g["all"]["spread"], "oracle": g["all"]["oracle"],
+         "minus_spread": g["all"]["minus_spread"].mean,
+         "minus_spread_low": g["all"]["minus_spread"].low,
+         "minus_spread_high": g["all"]["minus_spread"].high,
+         "minus_random": g["all"]["minus_random"].mean,
+         "minus_random_low": g["all"]["minus_random"].low,
+         "minus_random_high": g["all"]["minus_random"].high}
+        for g in results
+    ])  # fmt: skip
+    write_text(out / "cv_table.md", table_markdown(results))
+    _plot(results, out / "cv_coverage_by_view.png")
+    return results
 
+
+def table_markdown(results: list[dict]) -> str:
+    """The Markdown of ``cv_table.md`` (see the module docstring)."""
+    lines = [
+        "Held-out category AUC of the checkpoint each fold chose without it, mean [95 % "
+        "bootstrap interval over models]. Random is averaged over its seeds per episode; "
+        "random, spread and the oracle play the same episodes.",
+        "",
+    ]
+    folds = sorted({(r["fold"], r["held_out"]) for g in results for r in g["runs"]})
+    rows = []
+    for g in results:
+        cells = {r["fold"]: st["network"].text(3, signed=False) for r, st in g["folds"]}
+        rows.append([g["model"], g["score"]] + [cells.get(k, "") for k, _ in folds])
+    lines += md_table(["model", "score", *[f"fold {k} ({c})" for k, c in folds]], rows)
+    lines += ["", "Over all folds' held-out episodes:", ""]
+    rows = []
+    for g in results:
+        a = g["all"]
+        above_spread = sum(st["minus_spread"].above_zero for _, st in g["folds"])
+        above_random = sum(st["minus_random"].above_zero for _, st in g["folds"])
+        n = len(g["folds"])
+        rows.append([
+            g["model"], g["score"], str(n), str(a["network"].n),
+            a["network"].text(3, signed=False), f"{a['random']:.3f}", f"{a['spread']:.3f}",
+            f"{a['oracle']:.3f}", a["minus_spread"].text(3), a["minus_random"].text(3),
+            f"{above_spread} of {n}", f"{above_random} of {n}",
+        ])  # fmt: skip
+    header = ["model", "score", "folds", "episodes", "network", "random", "spread", "oracle",
+              "network - spread", "network - random", "folds above spread",
+              "folds above random"]  # fmt: skip
+    lines += md_table(header, rows)
+    lines += [
+        "",
+        "A fold counts as above a baseline only when its whole interval of the paired "
+        "difference lies above 0.",
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    columns = list(dict.fromkeys(k for r in rows for k in r))
+    handle = io.StringIO()
+    writer = csv.DictWriter(handle, columns, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(
+        [{k: f"{v:.6f}" if isinstance(v, float) else v for k, v in r.items()} for r in rows]
+    )
+    write_text(path, handle.getvalue())
+
+
+def _plot(results: list[dict], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for (model, score), items in sorted(groups.items()):
-        curves = np.array([r["curve"] for r in items if len(r["curve"]) == 10])
-        if len(curves):
-            ax.plot(range(1, 11), curves.mean(axis=0), marker="o", label=f"{model} ({score})")
-    every = list(groups.values())[0]
-    for name, style in (("random", ":"), ("oracle", "--")):
-        ref = np.mean([r[f"{name}_curve"] for r in every], axis=0)
-        ax.plot(range(1, 11), ref, style, color="gray", label=name)
+    for g in results:
+        curve = np.mean([r["coverage"]["network"].mean(axis=0) for r in g["runs"]], axis=0)
+        x = np.arange(1, len(curve) + 1)
+        ax.plot(x, curve, marker="o", label=f"{g['model']} ({g['score']})")
+    runs = results[0]["runs"]
+    for name, style in (("random", ":"), ("spread", "-."), ("oracle", "--")):
+        ref = np.mean([r["coverage"][name].mean(axis=0) for r in runs], axis=0)
+        ax.plot(np.arange(1, len(ref) + 1), ref, style, color="gray", label=name)
     ax.set_xlabel("views")
     ax.set_ylabel("coverage (held-out category, mean over folds)")
-    ax.set_title("Average coverage by view over the folds")
+    ax.set_title("Coverage by view on the held-out categories")
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "cv_coverage_by_view.png", dpi=120)
+    fig.savefig(path, dpi=120)
     plt.close(fig)
-    return rows
 
 
 def main(argv: list[str] | None = None) -> None:

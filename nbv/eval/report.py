@@ -26,7 +26,6 @@ from nbv.eval.tables import (
     curve_tables,
     fmt,
     groups,
-    md_table,
     method_rank,
     order_methods,
     paired_auc,
@@ -37,6 +36,7 @@ from nbv.policies.registry import (
     HULL_SCO_REPLAN,
 )
 from nbv.utils.atomic import write_text
+from nbv.utils.markdown import md_table
 
 
 def _jsonable(value):

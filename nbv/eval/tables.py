@@ -8,9 +8,8 @@ from collections import defaultdict
 
 import numpy as np
 
-from nbv.policies.registry import (
-    METHODS,
-)
+from nbv.policies.registry import METHODS
+from nbv.utils.markdown import md_table
 
 
 def groups(records: list, check: bool = False) -> dict[tuple, dict]:
@@ -59,11 +58,6 @@ def order_methods(methods) -> list[str]:
 
 def fmt(x: float, digits: int = 3) -> str:
     return "n/a" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
-
-
-def md_table(header: list[str], rows: list[list[str]]) -> list[str]:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    return lines + ["| " + " | ".join(row) + " |" for row in rows]
 
 
 def curve_tables(g: dict, datasets, viewspaces, n_views: int, what: str) -> list[str]:

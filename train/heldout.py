@@ -1,0 +1,68 @@
+"""The held-out category, scored once, with the chosen checkpoint only.
+
+The fold's network (``best.pt``, chosen without the held-out category) plays an episode from every
+start view on every model of the held-out category; random (averaged over ``repeats`` seeds per
+episode), spread and the coverage oracle play the same episodes. ``heldout.json`` keeps every
+episode's AUC and coverage curve, so :mod:`train.summary` can pair the methods episode by episode.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from tqdm import tqdm
+
+from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
+from nbv.policies.episode import run_episode
+from nbv.utils.seeding import named_rng
+
+#: The file in the run folder.
+HELDOUT_FILE = "heldout.json"
+#: The methods it holds, the network first.
+HELDOUT_METHODS = ("network", "random", "spread", "oracle")
+
+
+def score_heldout(
+    dataset, keys: list[str], start_views, network, seed: int, repeats: int, progress: bool
+) -> dict:
+    """Episodes of the network and the baselines on the held-out models, original viewspace.
+
+    Args:
+        dataset: the opened dataset.
+        keys: the held-out category's models.
+        start_views: the episodes' start views.
+        network: a :class:`nbv.policies.network.NetworkPolicy` of the chosen checkpoint.
+        seed: the run's seed (random's generators derive from it, the key, the start, the repeat).
+        repeats: random's seeds per episode (its AUC and curve are their means).
+        progress: show a progress bar.
+
+    Returns:
+        ``episodes`` ([key, start] pairs), ``categories``, ``auc`` (method -> per-episode AUC),
+        ``coverage`` (method -> per-episode curves) and ``random_repeats``.
+    """
+    out: dict = {
+        "episodes": [], "categories": [], "random_repeats": int(repeats),
+        "auc": {m: [] for m in HELDOUT_METHODS}, "coverage": {m: [] for m in HELDOUT_METHODS},
+    }  # fmt: skip
+
+    def record(method: str, episodes: list) -> None:
+        out["auc"][method].append(float(np.mean([e.auc for e in episodes])))
+        out["coverage"][method].append(np.mean([e.coverage for e in episodes], axis=0).tolist())
+
+    bar = tqdm(total=len(keys) * len(start_views), desc="held-out episodes", disable=not progress)
+    for key in keys:
+        model = dataset.model(key, ("original",))
+        for start in start_views:
+            start = int(start)
+            out["episodes"].append([key, start])
+            out["categories"].append(model.category)
+            record("network", [run_episode(model, "original", start, network.fresh())])
+            record("spread", [run_episode(model, "original", start, SpreadPolicy())])
+            record("oracle", [run_episode(model, "original", start, OraclePolicy("coverage"))])
+            record("random", [
+                run_episode(model, "original", start,
+                            RandomPolicy(named_rng(seed, "heldout-random", key, start, r)))
+                for r in range(repeats)
+            ])  # fmt: skip
+            bar.update()
+    bar.close()
+    return out
