@@ -72,16 +72,20 @@ def full_run(tiny, tmp_path_factory):
 def test_full_run_writes_every_output(full_run):
     names = {p.name for p in full_run.iterdir()}
     assert {"results.json", "summary.csv", "report.md"} <= names
-    pngs = ("coverage_by_view.png", "vig_by_view.png", "disturbance.png", "reconstruction.png")
+    pngs = ("coverage_by_view.png", "vig_by_view.png", "disturbance.png", "noise.png",
+            "reconstruction.png")  # fmt: skip
     for png in pngs:
         assert (full_run / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png
     data = json.loads((full_run / "results.json").read_text())
     episodes = data["episodes"]
     plain = [e for e in episodes if e["check"] is None]
-    # 2 models x 2 viewspaces x 9 methods x 2 starts, then the checks on 1 start of original:
-    # 2 networks x 2 checks + the random hull = 5 x 2 models x 1 start.
-    assert len(plain) == 2 * 2 * len(METHODS_BY_NAME) * 2 == 2 * 2 * 9 * 2
-    assert len(episodes) - len(plain) == 5 * 2
+    # 2 models x 2 viewspaces x 9 methods (random with 10 seeds) x 2 starts, then the checks on
+    # 1 start of original: 2 networks x 2 checks + the random hull + 3 noise levels x (2
+    # networks + 2 one-shot planners) = 17 x 2 models x 1 start.
+    assert len(METHODS_BY_NAME) == 9
+    assert len(plain) == 2 * 2 * (8 + 10) * 2
+    assert sorted(e["repeat"] for e in plain if e["method"] == "random")[-1] == 9
+    assert len(episodes) - len(plain) == 17 * 2
     assert data["skipped"] == {}
     for e in episodes:
         assert len(e["views"]) == len(e["coverage"]) == len(e["vig"]) == 10
@@ -91,11 +95,13 @@ def test_full_run_writes_every_output(full_run):
     report = (full_run / "report.md").read_text()
     for section in ("## AUC", "Mean coverage after each view", "Mean VIG", "AUC per category",
                     "Replanning", "Disturbance checks", "Timing per reconstruction",
-                    "paper / ours", "The paper's claims", "![disturbance.png]"):  # fmt: skip
+                    "paper / ours", "The paper's claims", "![disturbance.png]",
+                    "## AUC minus spread", "## AUC minus random", "## Filler picks",
+                    "## Position noise", "![noise.png]", "verdict vs spread"):  # fmt: skip
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 2 * 9 + 5  # (viewspace, method) pairs, then the checks
+    assert len(rows) == 2 * 9 + 17  # (viewspace, method) pairs, then the checks
     by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
     random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
     assert float(by[("original", "random", "")]["auc"]) == pytest.approx(
@@ -152,7 +158,8 @@ def test_missing_checkpoint_is_skipped_and_the_rest_runs(tiny, tmp_path):
     assert str(missing) in data["skipped"]["pcnbv"]
     assert "not signature" in data["skipped"]["pcnbv_sph"]  # a points network given for sph
     assert {e["method"] for e in data["episodes"]} == {"random", "hull_sco"}
-    assert {e["check"] for e in data["episodes"]} == {None, "random_hull"}
+    noise = {f"position_noise_{x}" for x in ("0.002", "0.005", "0.01")}
+    assert {e["check"] for e in data["episodes"]} == {None, "random_hull"} | noise
     report = (tmp_path / "out" / "report.md").read_text()
     assert "Skipped methods" in report and str(missing) in report
 
@@ -171,15 +178,20 @@ def test_disturbances(full_run, tiny, tmp_path):
     assert shown.sum() == 3 and shown.dtype == bool
     data = json.loads((full_run / "results.json").read_text())
     checks = {(e["check"], e["method"]) for e in data["episodes"] if e["check"]}
+    noisy = {(f"position_noise_{x}", m) for x in ("0.002", "0.005", "0.01")
+             for m in ("pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph")}  # fmt: skip
     assert checks == {("random_cloud", "pcnbv"), ("random_cloud", "pcnbv_sph"),
                       ("permuted_state", "pcnbv"), ("permuted_state", "pcnbv_sph"),
-                      ("random_hull", "hull_sco")}  # fmt: skip
-    ev = evaluate(tiny_settings(tiny, tmp_path, methods=("hull_sco",), viewspaces=("original",)))
+                      ("random_hull", "hull_sco")} | noisy  # fmt: skip
+    ev = evaluate(tiny_settings(tiny, tmp_path, methods=("hull_sco",), viewspaces=("original",),
+                                checks=("random_hull",)))  # fmt: skip
     rows = auc_changes(ev.records)
     assert len(rows) == 1 and rows[0]["check"] == "random_hull" and rows[0]["n"] == 2
     plain = {(r.key, r.start): r.auc for r in ev.records if r.check is None}
     dist = [(r.key, r.start, r.auc) for r in ev.records if r.check]
-    assert rows[0]["change"] == pytest.approx(np.mean([a - plain[(k, s)] for k, s, a in dist]))
+    change = rows[0]["change"]
+    assert change.mean == pytest.approx(np.mean([a - plain[(k, s)] for k, s, a in dist]))
+    assert change.low <= change.mean <= change.high
 
 
 def test_timing_table_and_paper_ratios(full_run, tiny, tmp_path):

@@ -1,126 +1,149 @@
-"""The paper's claims checked against the measured numbers, with the thresholds they use."""
+"""The paper's claims checked against the measured numbers, each by a paired interval.
+
+Every claim compares methods over the same episodes (model, start view); a claim holds only when
+the 95 % bootstrap interval of its paired statistic says so (models resampled,
+:mod:`nbv.utils.stats`). Each claim is judged twice: against random, as the paper does, and
+against spread, the geometry-free rule that could explain the same numbers."""
 
 from __future__ import annotations
 
-import numpy as np
-
-from nbv.eval.disturb import auc_changes
-from nbv.eval.tables import fmt, groups
+from nbv.eval.tables import episode_means, paired_difference
 from nbv.eval.timing import timing_table
-from nbv.policies.registry import (
-    HULL_SCO,
-    PCNBV,
-    PCNBV_SPH,
-    RANDOM,
-)
+from nbv.policies.registry import HULL_SCO, PCNBV, PCNBV_SPH, RANDOM, SPREAD
+from nbv.utils.markdown import md_table
+from nbv.utils.stats import Interval, bootstrap_mean
 
-#: Paper-claim thresholds (stated in the report).
+#: Claim thresholds (stated in the report).
 CLOSE_AUC = 0.02
-
-
 DEGRADE_FRACTION = 0.5
-
-
 HOLD_FRACTION = 0.8
+
+#: The paper's wording of each claim.
+PAPER = {
+    1: "The networks and the convex-hull planner beat random view selection.",
+    2: "On a permuted viewspace the networks degrade while the convex-hull planner holds.",
+    3: "PCNBV-sph is close to PCNBV in AUC and faster.",
+    4: "The networks lean on the view state more than on the cloud.",
+}
 
 
 def _verdict(ok: bool | None) -> str:
     return "n/a (not measured)" if ok is None else ("**holds**" if ok else "**does not hold**")
 
 
-def _yes(ok: bool) -> str:
-    return "yes" if ok else "no"
+class _Episodes:
+    """Per-episode AUC of a dataset's methods and checks (repeats averaged)."""
+
+    def __init__(self, records: list, dataset: str, seed: int) -> None:
+        self.means = episode_means([r for r in records if r.dataset == dataset])
+        self.dataset, self.seed = dataset, seed
+        self.records = records
+
+    def has(self, vs: str, method: str, check: str | None = None) -> bool:
+        return (self.dataset, vs, method, check) in self.means
+
+    def diff(self, vs: str, a: str, b: str) -> Interval | None:
+        """AUC(b) - AUC(a) on viewspace ``vs``."""
+        d = paired_difference(self.records, (a, None), (b, None), self.dataset, vs, self.seed)
+        return d.interval if d else None
+
+    def advantage_kept(self, method: str, base: str, fraction: float) -> Interval | None:
+        """Per episode: (method - base) on permuted minus ``fraction`` x (method - base) on
+        original; below 0: the method kept less than ``fraction`` of its advantage."""
+        cells = [self.means.get((self.dataset, vs, m, None)) for vs in ("permuted", "original")
+                 for m in (method, base)]  # fmt: skip
+        if any(c is None for c in cells):
+            return None
+        mp, bp, mo, bo = cells
+        shared = sorted(set(mp) & set(bp) & set(mo) & set(bo))
+        if not shared:
+            return None
+        x = [(mp[e].auc - bp[e].auc) - fraction * (mo[e].auc - bo[e].auc) for e in shared]
+        return bootstrap_mean(x, [k for k, _ in shared], self.seed)
 
 
-def _dataset_claims(d: str, g: dict, times: dict, changes: list[dict]) -> list[str]:
-    """The four claims on dataset ``d`` (see :func:`claims`)."""
-
-    def auc(vs: str, m: str) -> float:
-        s = g.get((d, vs, m, None))
-        return s["auc"] if s else float("nan")
-
-    def gain(vs: str, m: str) -> float:
-        return auc(vs, m) - auc(vs, RANDOM.name)
-
-    lines = []
-    rnd = auc("original", RANDOM.name)
-    beat = [m for m in (PCNBV.name, PCNBV_SPH.name, HULL_SCO.name) if (d, "original", m, None) in g]
-    if beat and np.isfinite(rnd):
-        ok = all(auc("original", m) > rnd for m in beat)
-        nums = ", ".join(f"{m} {fmt(auc('original', m))}" for m in beat)
-        lines.append(
-            f"1. *Networks and convex-hull planner beat random* (AUC, original viewspace): "
-            f"{nums} vs random {fmt(rnd)}: {_verdict(ok)}."
+def _against(ep: _Episodes, base: str) -> dict[int, tuple[str, bool | None]]:
+    """(measured text, verdict) of claims 1 and 2 with ``base`` as the baseline."""
+    out: dict[int, tuple[str, bool | None]] = {}
+    if not ep.has("original", base):
+        return {1: ("", None), 2: ("", None)}
+    beat = [m for m in (PCNBV.name, PCNBV_SPH.name, HULL_SCO.name) if ep.has("original", m)]
+    diffs = {m: ep.diff("original", base, m) for m in beat}
+    out[1] = (
+        "; ".join(f"{m} - {base} {d.text(3)}" for m, d in diffs.items()),
+        all(d.above_zero for d in diffs.values()) if diffs else None,
+    )
+    nets = [m for m in (PCNBV.name, PCNBV_SPH.name) if ep.has("permuted", m)]
+    degrade = {m: ep.advantage_kept(m, base, DEGRADE_FRACTION) for m in nets}
+    hold = ep.advantage_kept(HULL_SCO.name, base, HOLD_FRACTION)
+    if nets and hold is not None and all(d is not None for d in degrade.values()):
+        net_ok = all(d.below_zero for d in degrade.values())
+        parts = [f"{m}: {d.text(3)}" for m, d in degrade.items()]
+        out[2] = (
+            f"networks' kept advantage over {base} (permuted - {DEGRADE_FRACTION} x original, "
+            f"must lie below 0): {'; '.join(parts)}; planner's (permuted - {HOLD_FRACTION} x "
+            f"original, must lie above 0): {hold.text(3)}; networks degrade: "
+            f"{'yes' if net_ok else 'no'}, planner holds: {'yes' if hold.above_zero else 'no'}",
+            net_ok and hold.above_zero,
         )
     else:
-        lines.append(f"1. *Networks and convex-hull planner beat random*: {_verdict(None)}.")
+        out[2] = ("", None)
+    return out
 
-    nets = [m for m in (PCNBV.name, PCNBV_SPH.name) if (d, "permuted", m, None) in g]
-    needed = [
-        (d, vs, m, None) for vs in ("original", "permuted") for m in (HULL_SCO.name, RANDOM.name)
-    ]
-    if nets and all(k in g for k in needed):
-        net_ok = all(gain("permuted", m) < DEGRADE_FRACTION * gain("original", m) for m in nets)
-        hull_ok = gain("permuted", HULL_SCO.name) >= HOLD_FRACTION * gain("original", HULL_SCO.name)
-        nums = "; ".join(
-            f"{m} {fmt(gain('original', m))} -> {fmt(gain('permuted', m))}"
-            for m in [*nets, HULL_SCO.name]
-        )
-        lines.append(
-            "2. *On the permuted viewspace the networks degrade while the convex-hull planner "
-            f"holds* (AUC above random, original -> permuted: {nums}; criterion: each network "
-            f"keeps less than {DEGRADE_FRACTION:.0%} of its advantage, the planner at least "
-            f"{HOLD_FRACTION:.0%}): {_verdict(net_ok and hull_ok)} (networks degrade: "
-            f"{_yes(net_ok)}; planner holds: {_yes(hull_ok)})."
-        )
-    else:
-        lines.append(f"2. *Permuted viewspace*: {_verdict(None)}.")
 
-    if (d, "original", PCNBV.name, None) in g and (d, "original", PCNBV_SPH.name, None) in g:
-        diff = auc("original", PCNBV_SPH.name) - auc("original", PCNBV.name)
+def _dataset_claims(records: list, d: str, times: dict, seed: int) -> list[str]:
+    """The four claims on dataset ``d`` as a table (see :func:`claims`)."""
+    ep = _Episodes(records, d, seed)
+    vs_random, vs_spread = _against(ep, RANDOM.name), _against(ep, SPREAD.name)
+    rows = []
+    for k in (1, 2):
+        rows.append([str(k), PAPER[k], vs_random[k][0], _verdict(vs_random[k][1]),
+                     vs_spread[k][0], _verdict(vs_spread[k][1])])  # fmt: skip
+
+    if ep.has("original", PCNBV.name) and ep.has("original", PCNBV_SPH.name):
+        diff = ep.diff("original", PCNBV.name, PCNBV_SPH.name)
         t_p, t_s = times[PCNBV.name]["total"], times[PCNBV_SPH.name]["total"]
-        close, faster = abs(diff) <= CLOSE_AUC, t_s < t_p
-        lines.append(
-            f"3. *PCNBV-sph is close to PCNBV in AUC and faster*: AUC "
-            f"{fmt(auc('original', PCNBV_SPH.name))} vs {fmt(auc('original', PCNBV.name))} "
-            f"(difference {diff:+.3f}; close = within {CLOSE_AUC}), {t_s:.3f} s vs {t_p:.3f} s "
-            f"per reconstruction (all runs): {_verdict(close and faster)} (close: "
-            f"{_yes(close)}; faster: {_yes(faster)})."
-        )
+        close, faster = diff.within(CLOSE_AUC), t_s < t_p
+        text = (f"pcnbv_sph - pcnbv {diff.text(3)} (close: the interval inside +-{CLOSE_AUC}: "
+                f"{'yes' if close else 'no'}); {t_s:.3f} s vs {t_p:.3f} s per reconstruction "
+                f"(faster: {'yes' if faster else 'no'})")  # fmt: skip
+        spread = [
+            f"{m} - spread {ep.diff('original', SPREAD.name, m).text(3)}"
+            for m in (PCNBV_SPH.name, PCNBV.name)
+            if ep.has("original", SPREAD.name)
+        ]
+        rows.append(["3", PAPER[3], text, _verdict(close and faster),
+                     "; ".join(spread) or "", "n/a (compares two networks)"])  # fmt: skip
     else:
-        lines.append(f"3. *PCNBV-sph close to PCNBV and faster*: {_verdict(None)}.")
+        rows.append(["3", PAPER[3], "", _verdict(None), "", _verdict(None)])
 
     parts, oks = [], []
     for m in (PCNBV.name, PCNBV_SPH.name):
-        c = {
-            row["check"]: row["change"]
-            for row in changes
-            if row["method"] == m and row["dataset"] == d and row["viewspace"] == "original"
-        }
-        if "random_cloud" in c and "permuted_state" in c:
-            oks.append(c["permuted_state"] < c["random_cloud"])
-            parts.append(
-                f"{m}: permuted state {c['permuted_state']:+.3f}, random cloud "
-                f"{c['random_cloud']:+.3f}"
+        if ep.has("original", m, "permuted_state") and ep.has("original", m, "random_cloud"):
+            diff = paired_difference(
+                records, (m, "random_cloud"), (m, "permuted_state"), d, "original", seed
             )
-    if oks:
-        lines.append(
-            "4. *The networks lean on the view state more than on the cloud* (AUC change, "
-            f"original viewspace; {'; '.join(parts)}; criterion: the permuted state costs more "
-            f"than the random cloud): {_verdict(all(oks))}."
-        )
-    else:
-        lines.append(f"4. *Networks lean on the view state*: {_verdict(None)}.")
-    return lines
+            oks.append(diff.interval.below_zero)
+            parts.append(f"{m}: permuted state - random cloud {diff.interval.text(3)}")
+    text = "; ".join(parts) + " (must lie below 0)" if parts else ""
+    rows.append(["4", PAPER[4], text, _verdict(all(oks) if oks else None), "",
+                 "n/a (both disturb the network's own inputs)"])  # fmt: skip
+    return md_table(
+        ["#", "the paper's claim", "measured (vs random)", "verdict", "measured (vs spread)",
+         "verdict vs spread"], rows,
+    )  # fmt: skip
 
 
 def claims(evaluation) -> list[str]:
-    """The paper's qualitative claims, per dataset, each with the measured numbers, the
-    criterion and a verdict."""
-    g = groups(evaluation.records)
+    """The paper's claims, per dataset: the paper's wording, the measured paired intervals and a
+    verdict against random and against spread."""
     times = timing_table(evaluation.records)
-    changes = auc_changes(evaluation.records)
-    lines = []
+    seed = evaluation.settings.seed
+    lines = [
+        "Each claim holds only when its 95 % bootstrap interval says so (paired over the same "
+        "episodes, models resampled). Against spread, claim 1 asks whether each method beats "
+        "the geometry-free rule, claim 2 whether the planner keeps its advantage over it.",
+    ]
     for d in [info.name for info in evaluation.datasets]:
-        lines += [f"\n### {d}\n", *_dataset_claims(d, g, times, changes)]
+        lines += [f"\n### {d}\n", *_dataset_claims(evaluation.records, d, times, seed)]
     return lines

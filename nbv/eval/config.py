@@ -82,6 +82,8 @@ class EvalSettings:
     disturb_viewspaces: tuple[str, ...] = ("original",)
     disturb_start_views: tuple[int, ...] = (1, 10, 24)
     disturb_radius: float = 0.5
+    noise_sigmas: tuple[float, ...] = (0.002, 0.005, 0.01)
+    random_repeats: int = 10
     seed: int = 0
     threads: int = 0
     progress: bool = True
@@ -109,6 +111,10 @@ class EvalSettings:
              "null or an integer >= 1"),
             ("threads", self.threads, self.threads >= 0, "an integer >= 0 (0 = torch's default)"),
             ("disturb.radius", self.disturb_radius, self.disturb_radius > 0, "a positive distance"),
+            ("disturb.noise", list(self.noise_sigmas),
+             all(x > 0 for x in self.noise_sigmas) and len(set(self.noise_sigmas))
+             == len(self.noise_sigmas), "distinct positive standard deviations"),
+            ("random_repeats", self.random_repeats, self.random_repeats >= 1, "an integer >= 1"),
             ("hull.dilate", h.dilate, isinstance(h.dilate, bool), "true or false"),
             ("prepare.n_gt", p.n_gt, p.n_gt >= 1, "an integer >= 1"),
             ("prepare.eps", p.eps, p.eps > 0, "a positive distance"),
@@ -193,6 +199,7 @@ class DisturbConfig:
     viewspace: Any = MISSING
     start_views: list[int] | None = MISSING
     radius: float = MISSING
+    noise: list[float] = MISSING
 
 
 @dataclass
@@ -213,6 +220,7 @@ class EvalConfig:
     checkpoints: dict[str, str] = MISSING
     hull: HullConfig = field(default_factory=HullConfig)
     disturb: DisturbConfig = field(default_factory=DisturbConfig)
+    random_repeats: int = MISSING
     seed: int = MISSING
     threads: int = MISSING
     progress: bool = MISSING
@@ -278,6 +286,8 @@ def settings_from_config(cfg) -> EvalSettings:
         disturb_viewspaces=_names(disturb["viewspace"], "disturb.viewspace"),
         disturb_start_views=disturb_starts,
         disturb_radius=disturb["radius"],
+        noise_sigmas=tuple(float(x) for x in disturb["noise"]),
+        random_repeats=c["random_repeats"],
         seed=c["seed"],
         threads=c["threads"],
         progress=c["progress"],

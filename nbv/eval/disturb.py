@@ -6,6 +6,10 @@
   visited views as the true one (it still may only pick an unvisited view).
 * ``random_hull``: the one-shot convex-hull planner plans on the hull of random points (as many
   as the start view's cloud) instead of the start view's cloud.
+* ``position_noise``: a network or a planner sees every captured point moved by isotropic
+  Gaussian noise of standard deviation sigma (object frame units: the object fits in radius
+  0.5), one check per sigma (``position_noise_<sigma>``). Coverage is still scored on the true
+  views: only what the method sees is noisy.
 
 A method that ignores its cloud loses nothing under ``random_cloud``; one that ignores its view
 state loses nothing under ``permuted_state``. :func:`auc_changes` compares each check's AUC with
@@ -14,11 +18,12 @@ the undisturbed method's on the same episodes.
 
 from __future__ import annotations
 
-from collections import defaultdict
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from nbv.dataset.records import ModelData
+from nbv.eval.tables import paired_difference
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull import HullSCOPolicy
 from nbv.policies.network import NetworkPolicy
@@ -50,6 +55,10 @@ class _Wrapper:
     @property
     def notes(self) -> list[str]:
         return self.inner.notes
+
+    @property
+    def counts(self) -> dict[str, int]:
+        return getattr(self.inner, "counts", {})
 
 
 @dataclass
@@ -94,8 +103,53 @@ class RandomHullPlanner(_Wrapper):
         return self.inner.plan_from(cloud, view.poses, list(state.order), remaining)
 
 
-def disturbed(check: str, policy, rng: np.random.Generator, radius: float = 0.5):
-    """The policy of ``check`` around an undisturbed ``policy`` of a method it applies to."""
+@dataclass
+class NoisyPoints(_Wrapper):
+    """The wrapped policy sees every view's points moved by Gaussian noise of ``sigma``.
+
+    The noise of the episode's viewspace is drawn once, on the first call, for all its views;
+    the episode's own record (coverage, VIG) still comes from the true model.
+    """
+
+    inner: NetworkPolicy | HullSCOPolicy
+    rng: np.random.Generator
+    sigma: float
+    _model: ModelData | None = None
+
+    def noisy(self, model: ModelData, viewspace: str) -> ModelData:
+        """``model`` with the points of ``viewspace`` disturbed (the same ones on every call)."""
+        if self._model is None:
+            view = model.views[viewspace]
+            noise = self.rng.normal(0.0, self.sigma, size=view.points.shape)
+            noisy_view = replace(view, points=(view.points + noise).astype(view.points.dtype))
+            self._model = replace(model, views={viewspace: noisy_view})
+        return self._model
+
+    def __call__(self, state: EpisodeState) -> int | list[int]:
+        return self.inner(replace(state, model=self.noisy(state.model, state.viewspace)))
+
+
+#: Prefix of the checks' names in the records: ``position_noise_0.005``.
+NOISE_PREFIX = "position_noise_"
+
+
+def noise_check(sigma: float) -> str:
+    """The record name of the position-noise check of ``sigma``."""
+    return f"{NOISE_PREFIX}{sigma:g}"
+
+
+def check_sigma(name: str) -> float | None:
+    """The sigma of a position-noise record name, None for the other checks."""
+    return float(name[len(NOISE_PREFIX) :]) if name.startswith(NOISE_PREFIX) else None
+
+
+def disturbed(
+    check: str, policy, rng: np.random.Generator, radius: float = 0.5, sigma: float = 0.0
+):
+    """The policy of ``check`` around an undisturbed ``policy`` of a method it applies to
+    (``sigma``: the noise of ``position_noise``)."""
+    if check == "position_noise":
+        return NoisyPoints(policy, rng, sigma)
     if check == "random_cloud":
         return RandomCloudNetwork(policy, rng, radius)
     if check == "permuted_state":
@@ -105,45 +159,30 @@ def disturbed(check: str, policy, rng: np.random.Generator, radius: float = 0.5)
     raise ValueError(f"unknown check {check!r}; allowed: {', '.join(CHECKS)}")
 
 
-def auc_changes(records: list) -> list[dict]:
+def auc_changes(records: list, seed: int = 0) -> list[dict]:
     """Each check's AUC beside the undisturbed method's on the same episodes.
 
     Args:
         records: :class:`nbv.eval.protocol.EpisodeRecord` of both the checks and the methods.
+        seed: the bootstrap's seed.
 
     Returns:
         One row per (check, method, dataset, viewspace): ``n`` paired episodes, ``auc`` of the
-        method, ``auc_disturbed``, ``change`` (disturbed minus undisturbed, mean of the paired
-        differences) and ``change_se`` (its standard error).
+        method, ``auc_disturbed``, ``change`` (disturbed minus undisturbed: an
+        :class:`nbv.utils.stats.Interval` over the paired episodes, models resampled) and
+        ``sigma`` (the position noise, None for the other checks).
     """
-    plain = {
-        (r.method, r.dataset, r.viewspace, r.key, r.start): r.auc
-        for r in records
-        if r.check is None
-    }
-    groups: dict[tuple, list[tuple[float, float]]] = defaultdict(list)
-    for r in records:
-        if r.check is None:
-            continue
-        base = plain.get((r.method, r.dataset, r.viewspace, r.key, r.start))
-        if base is not None:
-            groups[(r.check, r.method, r.dataset, r.viewspace)].append((base, r.auc))
+    keys = sorted({(r.check, r.method, r.dataset, r.viewspace) for r in records if r.check})
     rows = []
-    for (check, method, dataset, viewspace), pairs in groups.items():
-        base, dist = np.array(pairs).T
-        diff = dist - base
-        se = float(diff.std(ddof=1) / np.sqrt(len(diff))) if len(diff) > 1 else float("nan")
-        rows.append(
-            dict(
-                check=check,
-                method=method,
-                dataset=dataset,
-                viewspace=viewspace,
-                n=len(pairs),
-                auc=float(base.mean()),
-                auc_disturbed=float(dist.mean()),
-                change=float(diff.mean()),
-                change_se=se,
-            )
+    for check, method, dataset, viewspace in keys:
+        change = paired_difference(
+            records, (method, None), (method, check), dataset, viewspace, seed
         )
+        if change is None:
+            continue
+        rows.append(dict(
+            check=check, method=method, dataset=dataset, viewspace=viewspace,
+            n=change.interval.n, auc=change.mean_a, auc_disturbed=change.mean_b,
+            change=change.interval, sigma=check_sigma(check),
+        ))  # fmt: skip
     return rows

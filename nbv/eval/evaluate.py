@@ -15,12 +15,13 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
 from nbv.dataset.reader import Dataset
 from nbv.eval.config import EvalSettings
-from nbv.eval.disturb import disturbed
+from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
@@ -44,6 +45,8 @@ class DatasetInfo:
         keys: the evaluated models.
         failures: ``(key, reason)`` of models the dataset could not produce.
         flat: models whose ground truth has no hull volume (their VIG is undefined: NaN).
+        excluded: ``(key, reason)`` of models left out because their episodes chose a network
+            checkpoint (scoring them would report on the selection data).
     """
 
     name: str
@@ -51,6 +54,7 @@ class DatasetInfo:
     keys: list[str]
     failures: list[tuple[str, str]] = field(default_factory=list)
     flat: list[str] = field(default_factory=list)
+    excluded: list[tuple[str, str]] = field(default_factory=list)
 
 
 @dataclass
@@ -142,6 +146,29 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
     return out
 
 
+def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, NetworkPolicy]) -> None:
+    """Leave out of ``info.keys`` the models whose episodes chose a network's checkpoint, for
+    every method (the comparison stays paired), noting each in ``info.excluded``."""
+    if info.name == "meshes":
+        return
+    keep = []
+    for key in info.keys:
+        marks = (key, f"category:{ds.index[key][1]}")
+        chose = [m for m, net in networks.items() if any(k in net.selected_on for k in marks)]
+        if chose:
+            info.excluded.append((key, f"chose the checkpoint of {', '.join(chose)}"))
+        else:
+            keep.append(key)
+    if info.excluded:
+        log.warning("dataset=%s: %d models left out: they chose a network's checkpoint",
+                    info.name, len(info.excluded))  # fmt: skip
+    info.keys = keep
+    if not keep:
+        raise EvalDataError(
+            f"dataset={info.name}: every model chose a network checkpoint; nothing to score"
+        )
+
+
 def load_networks(
     settings: EvalSettings, n_views: int
 ) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
@@ -165,22 +192,40 @@ def load_networks(
     return networks, skipped
 
 
-def _jobs(settings: EvalSettings, runnable: list[str]) -> list[tuple[str, str | None, str, int]]:
-    """(method, check, viewspace, start view) of the episodes to run on every model."""
+class Job(NamedTuple):
+    """One episode to run on every model: the method, its disturbance (``kind``: the check,
+    ``check``: its record name, ``sigma``: a position noise), viewspace, start view and repeat."""
+
+    method: str
+    check: str | None
+    kind: str | None
+    viewspace: str
+    start: int
+    repeat: int = 0
+    sigma: float = 0.0
+
+
+def _jobs(settings: EvalSettings, runnable: list[str]) -> list[Job]:
+    """The episodes to run on every model: the methods (a stochastic one ``random_repeats``
+    times), then the checks (position noise once per sigma)."""
     jobs = [
-        (m, None, vs, start)
+        Job(m, None, None, vs, start, r)
         for vs in settings.viewspaces
         for m in runnable
         for start in settings.start_views
+        for r in range(settings.random_repeats if METHODS[m].stochastic else 1)
     ]
     for vs in settings.check_viewspaces:
         for check in settings.checks:
-            jobs += [
-                (m, check, vs, start)
-                for m in check_methods(check)
-                if m in runnable
-                for start in settings.check_start_views
-            ]
+            sigmas = settings.noise_sigmas if check == "position_noise" else (0.0,)
+            for sigma in sigmas:
+                name = noise_check(sigma) if check == "position_noise" else check
+                jobs += [
+                    Job(m, name, check, vs, start, 0, sigma)
+                    for m in check_methods(check)
+                    if m in runnable
+                    for start in settings.check_start_views
+                ]
     return jobs
 
 
@@ -193,6 +238,8 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     networks, skipped = load_networks(settings, n_views)
     for method, reason in skipped.items():
         log.warning("skipping %s: %s", method, reason)
+    for info, ds in opened:
+        exclude_selection(info, ds, networks)
     if settings.threads:
         import torch
 
@@ -222,16 +269,19 @@ def evaluate(settings: EvalSettings) -> Evaluation:
             done = episodes.done.get((info.name, key))
             if done is None:
                 done = []
-                for method, check, vs, start in jobs:
-                    rng = episode_rng(settings.seed, method, check or "", key, vs, start)
-                    policy = METHODS[method].build(ctx, rng)
-                    if check is not None:
-                        policy = disturbed(check, policy, rng, settings.disturb_radius)
-                    done.append(
-                        run_record(
-                            model, vs, start, method, policy, info.name, settings.n_views, check
+                for job in jobs:
+                    # Repeat 0 keeps the generator of a single run: one seed's numbers stay.
+                    names = (job.method, job.check or "", key, job.viewspace, job.start)
+                    rng = episode_rng(settings.seed, *names, *([job.repeat] if job.repeat else []))
+                    policy = METHODS[job.method].build(ctx, rng)
+                    if job.kind is not None:
+                        policy = disturbed(
+                            job.kind, policy, rng, settings.disturb_radius, job.sigma
                         )
-                    )
+                    done.append(
+                        run_record(model, job.viewspace, job.start, job.method, policy,
+                                   info.name, settings.n_views, job.check, job.repeat)
+                    )  # fmt: skip
                     bar.update()
                 episodes.append(info.name, key, done)
             else:

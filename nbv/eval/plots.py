@@ -73,7 +73,7 @@ def curves_figure(evaluation, what: str, path: Path) -> None:
 
 def disturbance_figure(evaluation, path: Path) -> bool:
     """AUC of each checked method with and without each disturbance; False if none ran."""
-    rows = auc_changes(evaluation.records)
+    rows = [r for r in auc_changes(evaluation.records) if r["sigma"] is None]
     if not rows:
         return False
     panels = sorted({(r["dataset"], r["viewspace"]) for r in rows})
@@ -101,6 +101,38 @@ def disturbance_figure(evaluation, path: Path) -> bool:
         ax.set_title(f"{d}, {vs} viewspace: AUC change", fontsize=10)
         ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
         ax.grid(axis="x", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def noise_figure(evaluation, path: Path) -> bool:
+    """AUC change against the position noise's sigma, per method, with the paired intervals;
+    False if the check did not run."""
+    rows = [r for r in auc_changes(evaluation.records) if r["sigma"] is not None]
+    if not rows:
+        return False
+    panels = sorted({(r["dataset"], r["viewspace"]) for r in rows})
+    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.2), squeeze=False)
+    for ax, (d, vs) in zip(axes[0], panels, strict=True):
+        here = [r for r in rows if r["dataset"] == d and r["viewspace"] == vs]
+        for m in sorted({r["method"] for r in here}, key=method_rank):
+            rs = sorted((r for r in here if r["method"] == m), key=lambda r: r["sigma"])
+            x = np.array([r["sigma"] for r in rs])
+            y = np.array([r["change"].mean for r in rs])
+            err = np.array([[r["change"].mean - r["change"].low for r in rs],
+                            [r["change"].high - r["change"].mean for r in rs]])  # fmt: skip
+            colour, line = _style(m)
+            ax.errorbar(x, y, yerr=np.nan_to_num(err), color=colour, ls=line, marker="o",
+                        capsize=3, label=m)  # fmt: skip
+        ax.axhline(0.0, color="#999999", lw=0.8)
+        ax.set_xscale("log")
+        ax.set_xlabel("position noise sigma (object radius 0.5)")
+        ax.set_ylabel("AUC change (noisy - clean), 95 % interval")
+        ax.set_title(f"{d}, {vs} viewspace", fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -202,6 +234,8 @@ def draw_all(evaluation) -> list[Path]:
             written.append(out / f"{what}_by_view.png")
     if disturbance_figure(evaluation, out / "disturbance.png"):
         written.append(out / "disturbance.png")
+    if noise_figure(evaluation, out / "noise.png"):
+        written.append(out / "noise.png")
     if reconstruction_figure(evaluation, out / "reconstruction.png"):
         written.append(out / "reconstruction.png")
     return written

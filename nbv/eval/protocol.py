@@ -37,6 +37,8 @@ class EpisodeRecord:
             :mod:`nbv.policies`), plus ``total`` (all decision times) and ``online`` (total
             without the view simulation, the paper's "online" time).
         notes: what the policy had to work around.
+        repeat: which seed of a stochastic method's episode (0 for the others).
+        counts: the planner's pick counts (``planned``, ``zero_gain``; empty for the others).
     """
 
     method: str
@@ -53,6 +55,8 @@ class EpisodeRecord:
     decision_times: list[float]
     timings: dict[str, float]
     notes: list[str] = field(default_factory=list)
+    repeat: int = 0
+    counts: dict[str, int] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """Plain JSON types; NaN becomes None."""
@@ -90,6 +94,7 @@ def run_record(
     dataset: str,
     n_views: int,
     check: str | None = None,
+    repeat: int = 0,
 ) -> EpisodeRecord:
     """Run one episode of ``policy`` and record it."""
     episode = run_episode(model, viewspace, start, policy, n_views=n_views)
@@ -108,4 +113,6 @@ def run_record(
         decision_times=[float(t) for t in episode.times],
         timings=episode_timings(policy, episode.times),
         notes=sorted(set(getattr(policy, "notes", []))),
+        repeat=int(repeat),
+        counts=dict(getattr(policy, "counts", {})),
     )

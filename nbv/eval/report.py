@@ -28,15 +28,19 @@ from nbv.eval.tables import (
     groups,
     method_rank,
     order_methods,
-    paired_auc,
+    paired_difference,
 )
 from nbv.eval.timing import COLUMNS, PAPER_TIMES, paper_ratios, timing_table
 from nbv.policies.registry import (
     HULL_SCO,
     HULL_SCO_REPLAN,
+    METHODS,
+    RANDOM,
+    SPREAD,
 )
 from nbv.utils.atomic import write_text
 from nbv.utils.markdown import md_table
+from nbv.utils.stats import Interval
 
 
 def _jsonable(value):
@@ -68,7 +72,8 @@ def write_csv(evaluation, path: Path) -> None:
     """``summary.csv``: one row per (dataset, viewspace, method, check)."""
     g = groups(evaluation.records, check=True)
     n_views = evaluation.settings.n_views
-    header = ["dataset", "viewspace", "method", "check", "episodes", "auc", "auc_se"]
+    header = ["dataset", "viewspace", "method", "check", "episodes", "repeats", "auc", "auc_se",
+              "auc_low", "auc_high", "zero_gain_picks", "planned_picks"]  # fmt: skip
     header += [f"coverage_{i + 1}" for i in range(n_views)]
     header += [f"vig_{i + 1}" for i in range(n_views)]
     header += ["seconds_total", "seconds_online"]
@@ -78,13 +83,112 @@ def write_csv(evaluation, path: Path) -> None:
     for (dataset, vs, method, check), s in sorted(
         g.items(), key=lambda kv: (kv[0][0], kv[0][1], method_rank(kv[0][2]), kv[0][3] or "")
     ):
-        row = [dataset, vs, method, check or "", s["n"], f"{s['auc']:.6f}"]
-        row.append("" if not np.isfinite(s["auc_se"]) else f"{s['auc_se']:.6f}")
+        row = [dataset, vs, method, check or "", s["n"], s["repeats"], f"{s['auc']:.6f}"]
+        row += ["" if not np.isfinite(x) else f"{x:.6f}"
+                for x in (s["auc_se"], s["auc_ci"].low, s["auc_ci"].high)]  # fmt: skip
+        planner = METHODS[method].planner if method in METHODS else False
+        row += [f"{s['zero_gain']:.4f}", f"{s['planned']:.4f}"] if planner else ["", ""]
         row += [f"{c:.6f}" for c in s["coverage"]]
         row += ["" if not np.isfinite(v) else f"{v:.6f}" for v in s["vig"]]
         row += [f"{s['total']:.6f}", f"{s['online']:.6f}"]
         writer.writerow(row)
     write_text(path, handle.getvalue())
+
+
+def verdict_of(diff: Interval, better: str, other: str) -> str:
+    """What a paired interval (better - other) says: who is better, or that it cannot tell."""
+    if diff.above_zero:
+        return f"{better} better"
+    if diff.below_zero:
+        return f"{other} better"
+    return "no difference shown (the interval holds 0)"
+
+
+def baseline_tables(records, methods, datasets, viewspaces, seed: int) -> list[str]:
+    """Every method minus spread and minus random, paired over the same episodes."""
+    lines = []
+    for base in (SPREAD.name, RANDOM.name):
+        if base not in methods:
+            continue
+        rows = []
+        for m in methods:
+            if m == base:
+                continue
+            row = [m]
+            for d in datasets:
+                for vs in viewspaces:
+                    diff = paired_difference(records, (base, None), (m, None), d, vs, seed)
+                    row.append(diff.interval.text(3) if diff else "")
+            rows.append(row)
+        if rows:
+            lines += [
+                "",
+                f"## AUC minus {base}, paired over the same episodes",
+                "",
+                f"Mean [95 % bootstrap interval] of AUC(method) - AUC({base}) per episode. A "
+                "method is better only when the whole interval lies above 0.",
+                "",
+            ]
+            header = ["method"] + [f"{d} / {vs}" for d in datasets for vs in viewspaces]
+            lines += md_table(header, rows)
+    return lines
+
+
+def filler_table(g: dict, methods, datasets, viewspaces) -> list[str]:
+    """Mean zero-gain picks per planner episode: picks the fill rule made, not the score."""
+    planners = [m for m in methods if m in METHODS and METHODS[m].planner]
+    rows = []
+    for m in planners:
+        row = [m]
+        for d in datasets:
+            for vs in viewspaces:
+                c = g.get((d, vs, m, None))
+                row.append(f"{c['zero_gain']:.2f} of {c['planned']:.2f}" if c else "")
+        rows.append(row)
+    if not rows:
+        return []
+    return [
+        "",
+        "## Filler picks of the planners",
+        "",
+        "Mean picks per episode that newly cover no hull sample (zero gain), of the picks the "
+        "planner made: the set cover was complete, and the greedy's spread-out fill (the "
+        "spread rule) chose them, not the planner's score. hull_sco_probes' random probes are "
+        "not planner picks.",
+        "",
+        *md_table(["method"] + [f"{d} / {vs}" for d in datasets for vs in viewspaces], rows),
+    ]
+
+
+def noise_table(changes: list[dict], sigmas) -> list[str]:
+    """AUC change per position-noise sigma and method (paired, with intervals)."""
+    rows = [r for r in changes if r["sigma"] is not None]
+    if not rows:
+        return []
+    by = {(r["method"], r["dataset"], r["viewspace"], r["sigma"]): r for r in rows}
+    keys = sorted({k[:3] for k in by}, key=lambda k: (k[1], k[2], method_rank(k[0])))
+    table = []
+    for method, dataset, vs in keys:
+        first = next(by[(method, dataset, vs, x)] for x in sigmas if (method, dataset, vs, x) in by)
+        table.append([method, dataset, vs, str(first["n"]), fmt(first["auc"])] + [
+            by[(method, dataset, vs, x)]["change"].text(3) if (method, dataset, vs, x) in by
+            else "" for x in sigmas
+        ])  # fmt: skip
+    return [
+        "",
+        "## Position noise on the cloud a method sees",
+        "",
+        "AUC change (noisy - clean, paired over the same episodes, mean [95 % bootstrap "
+        "interval]) when every captured point the method sees is moved by isotropic Gaussian "
+        "noise of standard deviation sigma (object frame: the object fits in radius 0.5). "
+        "Coverage is scored on the true views.",
+        "",
+        *md_table(
+            ["method", "dataset", "viewspace", "episodes", "AUC clean"]
+            + [f"sigma {x:g}" for x in sigmas],
+            table,
+        ),  # fmt: skip
+    ]
 
 
 def report_markdown(evaluation) -> str:
@@ -116,6 +220,11 @@ def report_markdown(evaluation) -> str:
         lines.append(f"- `{info.name}`: {len(info.keys)} models from `{info.path}`")
         if info.failures:
             lines.append("  - not produced: " + "; ".join(f"{k} ({r})" for k, r in info.failures))
+        if info.excluded:
+            lines.append(
+                "  - left out (their episodes chose a network checkpoint): "
+                + "; ".join(f"{k} ({r})" for k, r in info.excluded)
+            )
         if info.flat:
             lines.append(
                 f"  - flat ground truth (no hull volume, VIG undefined: NaN, left out of the VIG "
@@ -128,7 +237,14 @@ def report_markdown(evaluation) -> str:
         lines += ["", "Skipped methods:"]
         lines += [f"- `{m}`: {reason}" for m, reason in evaluation.skipped.items()]
 
-    lines += ["", "## AUC (mean ± standard error over models x start views)", ""]
+    lines += [
+        "",
+        "## AUC (mean [95 % bootstrap interval] over models x start views)",
+        "",
+        f"Intervals resample models (seed {s.seed}, 10,000 draws). Random is averaged over "
+        f"{s.random_repeats} seeds per episode first.",
+        "",
+    ]
     header = ["method"] + [f"{d} / {vs}" for d in datasets for vs in viewspaces]
     rows = []
     for m in methods:
@@ -136,9 +252,11 @@ def report_markdown(evaluation) -> str:
         for d in datasets:
             for vs in viewspaces:
                 c = g.get((d, vs, m, None))
-                row.append(f"{fmt(c['auc'])} ± {fmt(c['auc_se'])}" if c else "")
+                row.append(c["auc_ci"].text(3, signed=False) if c else "")
         rows.append(row)
     lines += md_table(header, rows)
+    lines += baseline_tables(records, methods, datasets, viewspaces, s.seed)
+    lines += filler_table(g, methods, datasets, viewspaces)
 
     lines += ["", "## Mean coverage after each view", ""]
     lines += curve_tables(g, datasets, viewspaces, s.n_views, "coverage")
@@ -159,23 +277,27 @@ def report_markdown(evaluation) -> str:
         rows = []
         for d in datasets:
             for vs in viewspaces:
-                mean, se, n = paired_auc(records, HULL_SCO.name, HULL_SCO_REPLAN.name, d, vs)
-                if n:
-                    better = "replan better" if mean > 0 else "one-shot better or equal"
-                    rows.append([d, vs, str(n), f"{mean:+.4f} ± {fmt(se, 4)}", better])
+                diff = paired_difference(
+                    records, (HULL_SCO.name, None), (HULL_SCO_REPLAN.name, None), d, vs, s.seed
+                )
+                if diff:
+                    rows.append([d, vs, str(diff.interval.n), diff.interval.text(4),
+                                 verdict_of(diff.interval, "replan", "one-shot")])  # fmt: skip
         lines += md_table(["dataset", "viewspace", "episodes", "AUC replan - one-shot", ""], rows)
 
-    changes = auc_changes(records)
+    changes = auc_changes(records, s.seed)
+    lines += noise_table(changes, s.noise_sigmas)
+    changes = [r for r in changes if r["sigma"] is None]
     lines += ["", "## Disturbance checks (the paper's Fig. 18)", ""]
     if changes:
         lines += [
             "AUC of the method, with the disturbance, and the paired change (disturbed - "
-            "undisturbed, mean ± standard error over the same episodes).",
+            "undisturbed, mean [95 % bootstrap interval] over the same episodes).",
             "",
         ]
         rows = [
             [r["check"], r["method"], r["dataset"], r["viewspace"], str(r["n"]), fmt(r["auc"]),
-             fmt(r["auc_disturbed"]), f"{r['change']:+.3f} ± {fmt(r['change_se'])}"]
+             fmt(r["auc_disturbed"]), r["change"].text(3)]
             for r in sorted(changes, key=lambda r: (r["dataset"], r["check"], r["method"]))
         ]  # fmt: skip
         lines += md_table(
@@ -229,7 +351,13 @@ def report_markdown(evaluation) -> str:
 
 
 #: The PNG files :mod:`nbv.eval.plots` writes.
-PLOT_FILES = ("coverage_by_view.png", "vig_by_view.png", "disturbance.png", "reconstruction.png")
+PLOT_FILES = (
+    "coverage_by_view.png",
+    "vig_by_view.png",
+    "disturbance.png",
+    "noise.png",
+    "reconstruction.png",
+)
 
 
 def write_outputs(evaluation, report_only: bool = False) -> None:

@@ -1,46 +1,96 @@
 """Means over episodes and the Markdown tables of the report.
 
-By method, by view, by category, and paired differences between two methods."""
+By method, by view, by category, and paired differences between two methods. An *episode* is a
+(model, start view) pair; a stochastic method's repeats of one episode are averaged first, so
+every method counts each episode once. Intervals are 95 % bootstrap intervals that resample
+models (the start views of one model are not independent), seeded."""
 
 from __future__ import annotations
 
 from collections import defaultdict
+from dataclasses import dataclass
 
 import numpy as np
 
 from nbv.policies.registry import METHODS
 from nbv.utils.markdown import md_table
+from nbv.utils.stats import Interval, bootstrap_mean
 
 
-def groups(records: list, check: bool = False) -> dict[tuple, dict]:
+def episode_means(records: list) -> dict[tuple, dict[tuple[str, int], EpisodeMean]]:
+    """Records by (dataset, viewspace, method, check), then by episode (model key, start view),
+    a stochastic method's repeats averaged into one :class:`EpisodeMean` per episode."""
+    by: dict[tuple, dict[tuple[str, int], list]] = defaultdict(lambda: defaultdict(list))
+    for r in records:
+        by[(r.dataset, r.viewspace, r.method, r.check)][(r.key, r.start)].append(r)
+    out: dict[tuple, dict[tuple[str, int], EpisodeMean]] = {}
+    for group, episodes in by.items():
+        out[group] = {}
+        for episode, rs in episodes.items():
+            vig = np.array([r.vig for r in rs], dtype=float)
+            out[group][episode] = EpisodeMean(
+                auc=float(np.mean([r.auc for r in rs])),
+                coverage=np.mean([r.coverage for r in rs], axis=0),
+                vig=vig.mean(axis=0),
+                total=float(np.mean([r.timings["total"] for r in rs])),
+                online=float(np.mean([r.timings["online"] for r in rs])),
+                zero_gain=float(np.mean([r.counts.get("zero_gain", 0) for r in rs])),
+                planned=float(np.mean([r.counts.get("planned", 0) for r in rs])),
+                repeats=len(rs),
+            )
+    return out
+
+
+@dataclass(frozen=True)
+class EpisodeMean:
+    """One episode's numbers, averaged over a stochastic method's repeats (see
+    :class:`nbv.eval.protocol.EpisodeRecord` for the fields)."""
+
+    auc: float
+    coverage: np.ndarray
+    vig: np.ndarray
+    total: float
+    online: float
+    zero_gain: float
+    planned: float
+    repeats: int
+
+
+def groups(records: list, check: bool = False, seed: int = 0) -> dict[tuple, dict]:
     """Means over episodes, by (dataset, viewspace, method, check).
 
     Args:
         records: episode records.
         check: keep the disturbance checks too (otherwise only the methods as they are).
+        seed: the bootstrap's seed.
 
     Returns:
-        key -> ``n``, ``auc`` (mean), ``auc_se``, ``coverage`` and ``vig`` (mean curves; VIG
-        averages the models where it is defined, NaN if none), ``total`` and ``online``
-        (mean seconds per reconstruction).
+        key -> ``n`` (episodes), ``repeats`` (seeds per episode), ``auc`` (mean), ``auc_se``,
+        ``auc_ci`` (:class:`nbv.utils.stats.Interval`, models resampled), ``coverage`` and
+        ``vig`` (mean curves; VIG averages the models where it is defined, NaN if none),
+        ``total`` and ``online`` (mean seconds per reconstruction), ``zero_gain`` and
+        ``planned`` (mean picks per episode).
     """
-    by: dict[tuple, list] = defaultdict(list)
-    for r in records:
-        if r.check is None or check:
-            by[(r.dataset, r.viewspace, r.method, r.check)].append(r)
     out = {}
-    for key, rs in by.items():
-        aucs = np.array([r.auc for r in rs])
-        vig = np.array([r.vig for r in rs], dtype=float)
+    for key, episodes in episode_means(records).items():
+        if key[3] is not None and not check:
+            continue
+        eps = list(episodes.values())
+        aucs = np.array([e.auc for e in eps])
+        vig = np.array([e.vig for e in eps], dtype=float)
         defined = np.isfinite(vig).all(axis=1)
         out[key] = dict(
-            n=len(rs),
+            n=len(eps),
+            repeats=max(e.repeats for e in eps),
             auc=float(aucs.mean()),
-            auc_se=float(aucs.std(ddof=1) / np.sqrt(len(rs))) if len(rs) > 1 else float("nan"),
-            coverage=np.mean([r.coverage for r in rs], axis=0),
+            auc_se=float(aucs.std(ddof=1) / np.sqrt(len(eps))) if len(eps) > 1 else float("nan"),
+            auc_ci=bootstrap_mean(aucs, [k for k, _ in episodes], seed),
+            coverage=np.mean([e.coverage for e in eps], axis=0),
             vig=vig[defined].mean(axis=0) if defined.any() else np.full(vig.shape[1], np.nan),
-            total=float(np.mean([r.timings["total"] for r in rs])),
-            online=float(np.mean([r.timings["online"] for r in rs])),
+            total=float(np.mean([e.total for e in eps])),
+            online=float(np.mean([e.online for e in eps])),
+            zero_gain=float(np.mean([e.zero_gain for e in eps])),
+            planned=float(np.mean([e.planned for e in eps])),
         )
     return out
 
@@ -98,16 +148,42 @@ def category_tables(records, datasets, viewspaces) -> list[str]:
     return lines
 
 
-def paired_auc(records, a: str, b: str, dataset: str, viewspace: str) -> tuple[float, float, int]:
-    """Mean and standard error of AUC(b) - AUC(a) over the episodes both ran."""
-    auc = {
-        (r.method, r.key, r.start): r.auc
-        for r in records
-        if r.check is None and r.dataset == dataset and r.viewspace == viewspace
-    }
-    diffs = [auc[(b, k, s)] - v for (m, k, s), v in auc.items() if m == a and (b, k, s) in auc]
-    if not diffs:
-        return float("nan"), float("nan"), 0
-    d = np.array(diffs)
-    se = float(d.std(ddof=1) / np.sqrt(len(d))) if len(d) > 1 else float("nan")
-    return float(d.mean()), se, len(d)
+@dataclass(frozen=True)
+class PairedDifference:
+    """B - A over the episodes both ran: the interval, and each side's mean there."""
+
+    interval: Interval
+    mean_a: float
+    mean_b: float
+
+
+def paired_difference(
+    records: list,
+    a: tuple[str, str | None],
+    b: tuple[str, str | None],
+    dataset: str,
+    viewspace: str,
+    seed: int = 0,
+) -> PairedDifference | None:
+    """AUC(b) - AUC(a) over the episodes both ran, with a bootstrap interval (models resampled).
+
+    Args:
+        records: episode records.
+        a, b: (method, check or None) of each side.
+        dataset, viewspace: where.
+        seed: the bootstrap's seed.
+
+    Returns:
+        None when no episode is shared.
+    """
+    means = episode_means([r for r in records if r.dataset == dataset and r.viewspace == viewspace])
+    ea = means.get((dataset, viewspace, *a), {})
+    eb = means.get((dataset, viewspace, *b), {})
+    shared = sorted(set(ea) & set(eb))
+    if not shared:
+        return None
+    xa = np.array([ea[e].auc for e in shared])
+    xb = np.array([eb[e].auc for e in shared])
+    return PairedDifference(
+        bootstrap_mean(xb - xa, [k for k, _ in shared], seed), float(xa.mean()), float(xb.mean())
+    )

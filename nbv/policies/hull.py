@@ -78,6 +78,9 @@ class HullSCOPolicy:
     eps: float = DEFAULT_EPS
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    #: ``planned``: views the planner chose; ``zero_gain``: those among them that newly cover
+    #: no hull sample (the greedy's spread-out fill made them, not the planner's score).
+    counts: dict[str, int] = field(default_factory=lambda: {"planned": 0, "zero_gain": 0})
 
     def plan_from(
         self, cloud: np.ndarray, poses: np.ndarray, visited: list[int], n_iter: int
@@ -126,6 +129,8 @@ class HullSCOPolicy:
                 result = run(thicken(cloud))
             else:
                 raise
+        self.counts["planned"] += len(result.views)
+        self.counts["zero_gain"] += sum(1 for g in result.gains if g <= 0)
         t = result.timings
         record_time(self.timings, "hull", t["hull"] + t["sampling"])
         record_time(self.timings, "simulation", t["simulation"])

@@ -22,6 +22,10 @@ class NetworkPolicy:
     ``precision`` is the arithmetic of the forward pass (:data:`nbv.models.precision.PRECISIONS`;
     ``"auto"`` is bfloat16 autocast where the CPU runs it natively). ``timings`` collects seconds
     per decision: ``sampling`` (or ``signature``) and ``network``.
+
+    ``selected_on`` names the models whose episodes chose the checkpoint (the training's
+    validation models, or for a checkpoint of an older version, chosen on its held-out category,
+    ``category:<name>``): an evaluation must not score them.
     """
 
     # nbv.models.pcnbv.PCNBV, kept untyped so that importing this module needs no torch
@@ -32,6 +36,7 @@ class NetworkPolicy:
     precision: str = "auto"
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    selected_on: tuple[str, ...] = ()
 
     @classmethod
     def from_checkpoint(
@@ -49,17 +54,25 @@ class NetworkPolicy:
 
         net, extra = load_checkpoint(path, n_views=n_views)
         precision = precision or str(extra.get("precision", "fp32"))
+        if "selection_keys" in extra:
+            selected_on = tuple(extra["selection_keys"])
+        else:  # older training chose best.pt on its held-out category
+            selected_on = (f"category:{extra['held_out']}",) if extra.get("held_out") else ()
         return cls(
             for_inference(net, precision),
             input=str(extra.get("input", "points")),
             n_points=int(extra.get("eval_points", 1024)),
             lmax=int(extra.get("lmax", 3)),
             precision=precision,
+            selected_on=selected_on,
         )
 
     def fresh(self) -> NetworkPolicy:
         """The same network with empty ``timings`` and ``notes`` (one per episode)."""
-        return NetworkPolicy(self.model, self.input, self.n_points, self.lmax, self.precision)
+        return NetworkPolicy(
+            self.model, self.input, self.n_points, self.lmax, self.precision,
+            selected_on=self.selected_on,
+        )  # fmt: skip
 
     def features(self, cloud: np.ndarray) -> np.ndarray:
         """The network input for a cloud: (n_points, 3) or the (4 (lmax+1)^2, 3) signature."""

@@ -20,8 +20,9 @@ from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.network import NetworkPolicy
 
-#: Disturbance checks (the paper's Fig. 18): what each one replaces of a policy's input.
-CHECKS = ("random_cloud", "permuted_state", "random_hull")
+#: Disturbance checks (the paper's Fig. 18, and Gaussian position noise on the cloud a method
+#: sees): what each one replaces of a policy's input.
+CHECKS = ("random_cloud", "permuted_state", "random_hull", "position_noise")
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,8 @@ class Method:
             robot could run).
         checks: the disturbance checks that apply to it.
         planner: a geometric planner (its plans' zero-gain picks are fill, not its score).
+        stochastic: its picks are random by design; the evaluation averages several seeds
+            per episode (``random_repeats``).
         style: matplotlib colour and line style of its curves.
         paper_times: the paper's Table 1 row, stage -> seconds per 9-view reconstruction
             (FACTS.md), when the paper times this method.
@@ -74,6 +77,7 @@ class Method:
     ground_truth: bool = False
     checks: tuple[str, ...] = ()
     planner: bool = False
+    stochastic: bool = False
     style: tuple[str, str] = ("#8c564b", "-")
     paper_times: Mapping[str, float] = field(default_factory=dict)
 
@@ -101,6 +105,7 @@ RANDOM = Method(
     "random",
     "a seeded random unvisited view",
     lambda ctx, rng: RandomPolicy(rng),
+    stochastic=True,
     style=("#7f7f7f", ":"),
 )
 SPREAD = Method(
@@ -121,7 +126,7 @@ PCNBV = Method(
     "PCNBV on the accumulated cloud (a training checkpoint)",
     lambda ctx, rng: ctx.networks["pcnbv"].fresh(),
     network_input="points",
-    checks=("random_cloud", "permuted_state"),
+    checks=("random_cloud", "permuted_state", "position_noise"),
     style=("#1f77b4", "-"),
     paper_times={"sampling": 3.12, "network": 0.21, "total": 3.24, "online": 3.24},
 )
@@ -130,7 +135,7 @@ PCNBV_SPH = Method(
     "PCNBV on the cloud's spherical-harmonics signature (a training checkpoint)",
     lambda ctx, rng: ctx.networks["pcnbv_sph"].fresh(),
     network_input="signature",
-    checks=("random_cloud", "permuted_state"),
+    checks=("random_cloud", "permuted_state", "position_noise"),
     style=("#17becf", "-"),
     paper_times={"signature": 2.53, "network": 0.02, "total": 2.55, "online": 2.55},
 )
@@ -138,7 +143,7 @@ HULL_SCO = Method(
     "hull_sco",
     "convex-hull set cover, one-shot from the start view's cloud",
     lambda ctx, rng: _hull_policy(ctx, rng),
-    checks=("random_hull",),
+    checks=("random_hull", "position_noise"),
     planner=True,
     style=("#d62728", "-"),
     # Its convex-hull row simulates views in Blender; its total (3.32 s) is as published.
@@ -148,6 +153,7 @@ HULL_SCO_SPH = Method(
     "hull_sco_sph",
     "convex-hull set cover on the hull of the cloud's spherical signature",
     lambda ctx, rng: _hull_policy(ctx, rng, sph=True),
+    checks=("position_noise",),
     planner=True,
     style=("#ff7f0e", "-"),
 )
