@@ -7,7 +7,7 @@ import csv
 import json
 import subprocess
 import sys
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -16,20 +16,21 @@ import trimesh
 from datagen import SMALL_CAMERA, write_meshes
 from test_policies import make_tiny_dataset, save_tiny_checkpoint
 
+import nbv.dataset
 from nbv.eval.config import (
     EvalConfigError,
     EvalSettings,
     PrepareSettings,
     settings_from_config,
 )
-from nbv.eval.disturb import auc_changes, permuted_state, random_ball
+from nbv.eval.disturb import auc_changes, disturbed, permuted_state, random_ball
 from nbv.eval.evaluate import EvalDataError, evaluate, run
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
 from nbv.eval.tables import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
 from nbv.planning.settings import PlannerSettings
-from nbv.policies.episode import auc
+from nbv.policies.episode import auc, run_episode
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
 from nbv.policies.registry import PLANNERS, MethodContext
 
@@ -386,3 +387,54 @@ def test_hull_policies_get_the_dilation_setting():
         for method in PLANNERS:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
             assert policy.settings.dilate is dilate and policy.eps == 0.03, method
+
+
+@dataclass
+class _Recorder:
+    """A policy that records what it is shown and picks the lowest free view (the disturbance
+    wrappers call it in each of the ways they call a network or a planner)."""
+
+    n_views: int = 10
+    seen: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
+
+    def __call__(self, state):
+        self.seen.append(("state", state.cloud().copy(), state.view_state.copy()))
+        return int(np.flatnonzero(~state.view_state)[0])
+
+    def decide(self, cloud, view_state, visited=None):
+        self.seen.append(("decide", np.array(cloud), np.array(view_state)))
+        return int(np.flatnonzero(~(view_state if visited is None else visited))[0])
+
+    def plan_from(self, cloud, poses, visited, n_iter):
+        self.seen.append(("plan", np.array(cloud), np.array(visited)))
+        return [v for v in range(len(poses)) if v not in visited][:n_iter]
+
+
+def test_disturbed_policies_are_really_shown_disturbed_inputs(tiny):
+    ds = nbv.dataset.open(tiny["data"])
+    model = ds.model(ds.keys()[0], ("original",))
+    start_cloud = model.views["original"].view_points(5)
+    for check, sigma in (("random_cloud", 0.0), ("permuted_state", 0.0), ("random_hull", 0.0),
+                         ("position_noise", 0.005)):  # fmt: skip
+        inner = _Recorder()
+        run_episode(model, "original", 5, disturbed(check, inner, np.random.default_rng(1), 0.5,
+                                                    sigma))  # fmt: skip
+        kind, cloud, shown = inner.seen[0]
+        if check == "permuted_state":
+            # The true cloud, and a state with one visited view that is not always the true one.
+            assert kind == "decide" and np.array_equal(cloud, start_cloud)
+            assert all(s.sum() == i + 1 for i, (_, _, s) in enumerate(inner.seen))
+            assert any(not s[5] for _, _, s in inner.seen)
+        elif check == "position_noise":
+            # The true views' points, every coordinate moved by noise of the given sigma.
+            assert kind == "state" and cloud.shape == start_cloud.shape
+            moved = cloud - start_cloud
+            assert (moved != 0).all() and np.std(moved) == pytest.approx(sigma, rel=0.1)
+        else:
+            # Random points in the ball of radius 0.5 instead of the view's.
+            assert kind == ("decide" if check == "random_cloud" else "plan")
+            assert len(cloud) == max(len(start_cloud), 4)
+            assert np.linalg.norm(cloud, axis=1).max() <= 0.5 + 1e-6
+            assert not np.isin(cloud, start_cloud).any()

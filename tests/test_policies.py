@@ -21,6 +21,7 @@ from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.registry import METHODS
 
 #: A PCNBV small enough to run in milliseconds (the sizes of tests/test_train.py).
 TINY_NET = dict(
@@ -278,22 +279,52 @@ def test_network_decides_on_the_shown_state_but_masks_the_visited_views(model, n
     assert policy.decide(cloud, visited) not in (1, 2)
 
 
-def test_policies_other_than_the_oracle_do_not_read_the_ground_truth(model, networks):
-    rng = np.random.default_rng(0)
-    blind = dataclasses.replace(
+def _blinded(model, viewspace: str, visited: np.ndarray, rng: np.random.Generator):
+    """``model`` as a robot knows it: random ground truth, no coverage bits, and random points
+    and hull vertices for every view not yet captured (each view keeps its point count)."""
+    view = model.views[viewspace]
+    points, hulls = view.points.copy(), view.hull_points.copy()
+    for v in np.flatnonzero(~visited):
+        for arr, off in ((points, view.offsets), (hulls, view.hull_offsets)):
+            arr[off[v] : off[v + 1]] = rng.random((off[v + 1] - off[v], 3)) - 0.5
+    blind_view = dataclasses.replace(
+        view, points=points, hull_points=hulls, coverage=np.zeros_like(view.coverage)
+    )
+    return dataclasses.replace(
         model,
         gt_points=rng.random(model.gt_points.shape).astype(np.float32),
         gt_hull_volume=0.0,
-        views={
-            name: dataclasses.replace(v, coverage=np.zeros_like(v.coverage))
-            for name, v in model.views.items()
-        },
+        views={viewspace: blind_view},
     )
-    for name in ("random", "spread", "pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph",
-                 "hull_sco_probes", "hull_sco_replan"):  # fmt: skip
-        a = run_episode(model, "original", 27, all_policies(networks, 1)[name])
-        b = run_episode(blind, "original", 27, all_policies(networks, 1)[name])
-        assert a.views == b.views, name
+
+
+@dataclasses.dataclass
+class _SeesOnlyCaptured:
+    """Runs ``inner`` on a state whose model is blinded at every decision (see _blinded)."""
+
+    inner: object
+    rng: np.random.Generator
+
+    def __call__(self, state):
+        model = _blinded(state.model, state.viewspace, state.view_state, self.rng)
+        return self.inner(dataclasses.replace(state, model=model))
+
+
+def test_policies_other_than_the_oracle_read_only_the_captured_views(model, networks):
+    # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
+    # it has not captured would pick otherwise on the blinded model.
+    names = [m for m in METHODS if not METHODS[m].ground_truth]
+    assert len(names) == 8
+    for name in names:
+        for start in (27, 4):
+            a = run_episode(model, "original", start, all_policies(networks, 1)[name])
+            blind = _SeesOnlyCaptured(all_policies(networks, 1)[name], np.random.default_rng(5))
+            b = run_episode(model, "original", start, blind)
+            assert a.views == b.views, name
+    # The blinding bites: the oracle, which reads the ground truth, picks otherwise.
+    oracle = run_episode(model, "original", 27, all_policies(networks, 1)["oracle"])
+    blind = _SeesOnlyCaptured(all_policies(networks, 1)["oracle"], np.random.default_rng(5))
+    assert run_episode(model, "original", 27, blind).views != oracle.views
 
 
 def test_thicken_gives_a_flat_square_the_volume_of_its_minkowski_sum():

@@ -15,9 +15,10 @@ import torch
 from datagen import TINY_NET, make_train_dataset
 
 import nbv.dataset
-from nbv.dataset.samples import SampleSet
+from nbv.dataset.samples import SampleSet, load_samples
 from nbv.models.checkpoints import CheckpointError, load_checkpoint
 from nbv.models.precision import resolve_precision
+from nbv.policies.network import NetworkPolicy
 from train.config import TrainConfigError, TrainSettings
 from train.loop import run, split_samples
 from train.metrics import best_view_hits, spearman
@@ -186,10 +187,26 @@ def test_bf16_training_is_reproducible_and_recorded(tiny_dataset, tmp_path):
         assert torch.equal(pa, pb), name
 
 
-def test_training_loss_drops(tiny_dataset, tmp_path):
+def test_training_loss_drops_and_bf16_picks_as_fp32(tiny_dataset, tmp_path):
     run(tiny_settings(tiny_dataset, tmp_path, epochs=6, lr=3e-3, eval_every=6))
     losses = [float(r["train_loss"]) for r in read_csv(tmp_path / "metrics.csv")]
     assert losses[-1] < 0.7 * losses[0]
+    # The trained checkpoint in bf16 (emulated where the CPU lacks it) picks the fp32 view
+    # wherever fp32's best two views are not a near tie that bf16's 8-bit mantissa cannot order.
+    fp32 = NetworkPolicy.from_checkpoint(tmp_path / "best.pt", precision="fp32")
+    bf16 = NetworkPolicy.from_checkpoint(tmp_path / "best.pt", precision="bf16")
+    samples = load_samples(tiny_dataset, "coverage")
+    agree = clear = 0
+    for i in range(0, len(samples), 3):
+        cloud, state = samples.points[i, :64], samples.view_state[i].astype(bool)
+        with torch.no_grad():
+            x = torch.from_numpy(fp32.features(cloud).astype(np.float32))[None]
+            scores = fp32.model(x, torch.from_numpy(state).float()[None])[0].numpy()
+        top = np.sort(np.where(state, -np.inf, scores))[-2:]
+        if top[1] - top[0] > 0.02 * max(np.abs(scores).max(), 1e-6):
+            clear += 1
+            agree += fp32.decide(cloud, state) == bf16.decide(cloud, state)
+    assert clear >= 20 and agree == clear
 
 
 @pytest.mark.parametrize(

@@ -17,6 +17,7 @@ from nbv.utils.atomic import append_durably, atomic_path, temporary_name, write_
 from nbv.utils.bits import popcount, popcount_rows
 from nbv.utils.seeding import named_rng, seed_sequence, seed_words
 from nbv.utils.selection import masked_argmax
+from nbv.utils.stats import bootstrap_mean
 
 
 def test_atomic_path_replaces_only_when_the_body_succeeds(tmp_path):
@@ -95,3 +96,45 @@ def test_category_table_is_pc_nbvs():
     assert len({c.synset for c in TABLE}) == 16
     assert all(len(c.synset) == 8 and c.synset.isdigit() for c in TABLE)
     assert SHAPENET_CATEGORIES["chair"] == "03001627"
+
+
+# -- bootstrap intervals --------------------------------------------------------------------------
+
+
+def test_bootstrap_interval_covers_a_known_mean_at_its_level():
+    # 400 samples of 60 draws from N(0.3, 0.1): the 95 % interval covers 0.3 in about 95 % of
+    # them (the binomial spread of 400 trials at 0.95 is +-0.011; percentile intervals run a
+    # little narrow at n = 60).
+    rng = np.random.default_rng(7)
+    hits = [
+        (iv.low <= 0.3 <= iv.high)
+        for iv in (
+            bootstrap_mean(rng.normal(0.3, 0.1, 60), seed=i, n_boot=2000) for i in range(400)
+        )
+    ]
+    assert 0.91 <= np.mean(hits) <= 0.98
+    one = bootstrap_mean(np.random.default_rng(1).normal(0.3, 0.1, 500))
+    assert one.low < 0.3 < one.high and one.mean == pytest.approx(0.3, abs=0.01)
+
+
+def test_bootstrap_is_seeded_and_resamples_clusters():
+    x = np.random.default_rng(0).normal(size=48)
+    assert bootstrap_mean(x, seed=3) == bootstrap_mean(x, seed=3)
+    assert bootstrap_mean(x, seed=3) != bootstrap_mean(x, seed=4)
+    # 6 clusters of 8 identical values: resampling clusters sees 6 values, not 48, so its
+    # interval is wider than the one that treats the 48 as independent.
+    clustered = np.repeat(np.random.default_rng(1).normal(size=6), 8)
+    labels = np.repeat(np.arange(6), 8)
+    wide = bootstrap_mean(clustered, labels)
+    narrow = bootstrap_mean(clustered)
+    assert wide.high - wide.low > 2 * (narrow.high - narrow.low)
+    assert wide.clusters == 6 and wide.n == 48
+    # With one value per cluster, clusters change nothing.
+    assert bootstrap_mean(x, np.arange(48), seed=2) == bootstrap_mean(x, seed=2)
+    # A constant difference has a zero-width interval; one cluster has none.
+    assert bootstrap_mean(np.full(10, 0.25)).low == pytest.approx(0.25)
+    assert np.isnan(bootstrap_mean([1.0, 2.0], ["a", "a"]).low)
+    with pytest.raises(ValueError, match="NaN"):
+        bootstrap_mean([1.0, np.nan])
+    with pytest.raises(ValueError, match="labels"):
+        bootstrap_mean([1.0, 2.0], ["a"])

@@ -33,7 +33,7 @@ from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date
 from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
 from nbv.dataset.sources import SourceModel, list_models, load_normalised
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
-from nbv.geometry.hull import hull_vertices, hull_volume
+from nbv.geometry.hull import QhullFailure, hull_vertices, hull_volume
 from nbv.geometry.scores import covered_mask
 from nbv.geometry.viewspace import get_viewspace
 from nbv.render.backends import render
@@ -213,6 +213,11 @@ def _finish(prep: _Prepared, depth: np.ndarray, poses: dict, settings: Settings)
         )
         start = stop
     m = prep.model
+    try:
+        gt_volume, gt_error = hull_volume(prep.gt_points), ""
+    except QhullFailure as err:
+        gt_volume, gt_error = float("nan"), str(err)
+        log.warning("%s: the ground truth's hull is unknown (VIG undefined): %s", m.key, err)
     return ModelData(
         key=m.key,
         category=m.category,
@@ -223,8 +228,9 @@ def _finish(prep: _Prepared, depth: np.ndarray, poses: dict, settings: Settings)
         scale=prep.scale,
         seed=settings.seed,
         gt_points=prep.gt_points,
-        gt_hull_volume=hull_volume(prep.gt_points),
+        gt_hull_volume=gt_volume,
         views=views,
+        gt_hull_error=gt_error,
     )
 
 

@@ -50,7 +50,11 @@ class ViewData:
 
 @dataclass
 class ModelData:
-    """Everything the dataset stores for one model."""
+    """Everything the dataset stores for one model.
+
+    ``gt_hull_volume`` is 0 for a flat ground truth and NaN when Qhull failed on it; then
+    ``gt_hull_error`` holds Qhull's message (empty otherwise). VIG is undefined for both.
+    """
 
     key: str
     category: str
@@ -63,6 +67,7 @@ class ModelData:
     gt_points: np.ndarray
     gt_hull_volume: float
     views: dict[str, ViewData] = field(default_factory=dict)
+    gt_hull_error: str = ""
 
 
 #: The scores a view can be chosen by: coverage of the ground truth (PC-NBV) and VIG.

@@ -51,6 +51,7 @@ from nbv.dataset.reader import Dataset, DatasetError, shard_files
 from nbv.dataset.records import SCORES, ModelData, score_functions
 from nbv.dataset.schema import write_strings
 from nbv.geometry.clouds import farthest_points
+from nbv.geometry.hull import QhullFailure
 from nbv.geometry.sph import signature
 from nbv.utils.atomic import atomic_path
 from nbv.utils.seeding import named_rng
@@ -163,10 +164,15 @@ def _model_job(args: tuple[Path, str, SampleSettings]) -> tuple[dict, list]:
     model = Dataset([shard_file]).model(key, (settings.viewspace,))
     arrays, skipped = {}, []
     for score in settings.scores:
-        if score == "vig" and not model.gt_hull_volume > 0:
+        if score == "vig" and model.gt_hull_error:
+            skipped.append((key, score, f"Qhull failed on the ground truth: {model.gt_hull_error}"))
+        elif score == "vig" and not model.gt_hull_volume > 0:
             skipped.append((key, score, "ground-truth hull has no volume: VIG undefined"))
         else:
-            arrays[score] = model_samples(model, score, settings)
+            try:
+                arrays[score] = model_samples(model, score, settings)
+            except QhullFailure as err:  # a union of views Qhull refused: no made-up gains
+                skipped.append((key, score, str(err)))
     return arrays, skipped
 
 

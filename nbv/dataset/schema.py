@@ -8,7 +8,8 @@ A shard file holds::
     /splits/<split>             keys of the models in that split (variable-length strings)
     /failures                   (K, 2) strings: key, reason of each model that could not be made
     /models/<key> (attrs)       category, split, source, source_path, center (3,), scale, seed,
-                                gt_hull_volume (volume of the ground truth's convex hull; 0 if flat)
+                                gt_hull_volume (volume of the ground truth's convex hull; 0 if
+                                flat, NaN if Qhull failed), gt_hull_error (Qhull's message or "")
     /models/<key>/gt_points     (n_gt, 3) float32 on the normalised mesh
     /models/<key>/views/<vs>/poses     (V, 4, 4) float64 camera-to-world (OpenCV camera axes)
     /models/<key>/views/<vs>/points    (sum N_v, 3) float32 world points (attr points_per_view)
@@ -66,6 +67,7 @@ def write_model(group: h5py.Group, model: ModelData) -> None:
         scale=float(model.scale),
         seed=int(model.seed),
         gt_hull_volume=float(model.gt_hull_volume),
+        gt_hull_error=str(model.gt_hull_error),
     )
     group.create_dataset("gt_points", data=model.gt_points.astype(np.float32), **_COMPRESSION)
     for name, view in model.views.items():
@@ -111,6 +113,7 @@ def read_model(group: h5py.Group, viewspaces: tuple[str, ...] | None = None) -> 
         gt_points=group["gt_points"][()],
         gt_hull_volume=float(attrs["gt_hull_volume"]),
         views=views,
+        gt_hull_error=str(attrs.get("gt_hull_error", "")),
     )
 
 

@@ -45,6 +45,8 @@ class DatasetInfo:
         keys: the evaluated models.
         failures: ``(key, reason)`` of models the dataset could not produce.
         flat: models whose ground truth has no hull volume (their VIG is undefined: NaN).
+        qhull_failures: ``(key, message)`` of models whose ground truth Qhull failed on (VIG
+            undefined, NaN; told apart from a flat ground truth).
         excluded: ``(key, reason)`` of models left out because their episodes chose a network
             checkpoint (scoring them would report on the selection data).
     """
@@ -54,6 +56,7 @@ class DatasetInfo:
     keys: list[str]
     failures: list[tuple[str, str]] = field(default_factory=list)
     flat: list[str] = field(default_factory=list)
+    qhull_failures: list[tuple[str, str]] = field(default_factory=list)
     excluded: list[tuple[str, str]] = field(default_factory=list)
 
 
@@ -264,7 +267,9 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         ctx = MethodContext(networks, settings.hull, ds.intrinsics, eps, settings.n_views)
         for key in info.keys:
             model = ds.model(key, viewspaces=settings.viewspaces)
-            if not model.gt_hull_volume > 0:
+            if model.gt_hull_error:
+                info.qhull_failures.append((key, model.gt_hull_error))
+            elif not model.gt_hull_volume > 0:
                 info.flat.append(key)
             done = episodes.done.get((info.name, key))
             if done is None:

@@ -112,7 +112,7 @@ def run_record(
         auc=episode.auc,
         decision_times=[float(t) for t in episode.times],
         timings=episode_timings(policy, episode.times),
-        notes=sorted(set(getattr(policy, "notes", []))),
+        notes=sorted(set(getattr(policy, "notes", [])) | set(episode.notes)),
         repeat=int(repeat),
         counts=dict(getattr(policy, "counts", {})),
     )

@@ -220,6 +220,12 @@ def report_markdown(evaluation) -> str:
         lines.append(f"- `{info.name}`: {len(info.keys)} models from `{info.path}`")
         if info.failures:
             lines.append("  - not produced: " + "; ".join(f"{k} ({r})" for k, r in info.failures))
+        if info.qhull_failures:
+            lines.append(
+                "  - Qhull failed on the ground truth (VIG unknown: NaN, left out of the VIG "
+                "means; not a flat object): "
+                + "; ".join(f"{k} ({msg})" for k, msg in info.qhull_failures)
+            )
         if info.excluded:
             lines.append(
                 "  - left out (their episodes chose a network checkpoint): "

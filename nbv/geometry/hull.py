@@ -29,8 +29,17 @@ def _principal_frame(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     return centroid, eigvec[:, ::-1].T, rank
 
 
+class QhullFailure(ValueError):
+    """Qhull failed on a cloud that is not degenerate (it passed the rank test): its volume is
+    unknown, not zero. The message holds Qhull's first line and the cloud's size."""
+
+
 def _hull(points: np.ndarray) -> ConvexHull | None:
-    """Qhull's 3-D hull of a float64 ``(N, 3)`` cloud, or None when it has no volume."""
+    """Qhull's 3-D hull of a float64 ``(N, 3)`` cloud, or None when it has no volume.
+
+    Raises:
+        QhullFailure: Qhull refused a cloud of full rank.
+    """
     if len(points) < 4:
         return None
     _, _, rank = _principal_frame(points)
@@ -38,17 +47,21 @@ def _hull(points: np.ndarray) -> ConvexHull | None:
         return None
     try:
         return ConvexHull(points)
-    except QhullError:
-        # Nearly flat clouds that pass the rank test may still defeat Qhull's initial simplex.
-        return None
+    except QhullError as err:
+        first = str(err).strip().splitlines()[0] if str(err).strip() else "QhullError"
+        raise QhullFailure(f"Qhull failed on {len(points)} points of full rank: {first}") from None
 
 
 def hull_volume(points: np.ndarray) -> float:
     """Volume of the convex hull of an ``(N, 3)`` cloud (Qhull), in cubed cloud units.
 
     Degenerate input (fewer than 4 points, duplicates only, colinear or flat points, an empty
-    cloud) has no volume and gives 0.0; it never raises for those. Non-finite values raise a
-    ValueError.
+    cloud) has no volume and gives 0.0; it never raises for those.
+
+    Raises:
+        QhullFailure: Qhull failed on a cloud that is not degenerate (its volume is unknown,
+            which is not the same as flat).
+        ValueError: non-finite values.
     """
     hull = _hull(as_cloud(points, "points"))
     return 0.0 if hull is None else float(hull.volume)

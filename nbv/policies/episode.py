@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from nbv.dataset.records import ModelData
+from nbv.geometry.hull import QhullFailure
 from nbv.geometry.scores import coverage_from_bits, vig_of_state
 
 #: The start views of the evaluation protocol (indices into the original viewspace).
@@ -61,12 +62,14 @@ class Episode:
         coverage: (len(views),) coverage after each view.
         vig: (len(views),) VIG after each view (NaN when the ground truth has no hull volume).
         times: seconds the policy spent at each decision.
+        notes: what scoring the episode had to work around (a Qhull failure: that VIG is NaN).
     """
 
     views: list[int]
     coverage: np.ndarray
     vig: np.ndarray
     times: list[float] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
 
     @property
     def auc(self) -> float:
@@ -82,8 +85,14 @@ def auc(curve: np.ndarray) -> float:
     return float((curve[:-1].sum() + 0.5 * curve[-1]) / len(curve))
 
 
-def curves(model: ModelData, viewspace: str, views: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Coverage and VIG after each view of ``views`` (in order): two (len(views),) arrays."""
+def curves(
+    model: ModelData, viewspace: str, views: list[int], notes: list[str] | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Coverage and VIG after each view of ``views`` (in order): two (len(views),) arrays.
+
+    VIG is NaN where it is undefined (a flat ground truth, or one Qhull failed on) and where
+    Qhull fails on the union of the visited views; each such failure is added to ``notes``.
+    """
     view = model.views[viewspace]
     n_gt = len(model.gt_points)
     hulls = view.view_hulls() if model.gt_hull_volume > 0 else None
@@ -92,7 +101,12 @@ def curves(model: ModelData, viewspace: str, views: list[int]) -> tuple[np.ndarr
     for v in views:
         state[v] = True
         cov.append(coverage_from_bits(view.coverage, state, n_gt))
-        vig.append(vig_of_state(hulls, state, model.gt_hull_volume) if hulls else np.nan)
+        try:
+            vig.append(vig_of_state(hulls, state, model.gt_hull_volume) if hulls else np.nan)
+        except QhullFailure as err:
+            vig.append(np.nan)
+            if notes is not None:
+                notes.append(f"VIG after {len(vig)} views unknown: {err}")
     return np.array(cov), np.array(vig)
 
 
@@ -128,5 +142,6 @@ def run_episode(
             raise ValueError(f"the policy chose view {v}, visited or outside 0..{n_candidates - 1}")
         state.view_state[v] = True
         state.order.append(v)
-    cov, vig = curves(model, viewspace, state.order)
-    return Episode(state.order, cov, vig, times)
+    notes: list[str] = []
+    cov, vig = curves(model, viewspace, state.order, notes)
+    return Episode(state.order, cov, vig, times, notes)
