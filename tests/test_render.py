@@ -28,6 +28,7 @@ from nbv.geometry.viewspace import original_viewspace
 from nbv.render.backends import render
 from nbv.render.blender import BLENDER_SCRIPT, render_blender
 from nbv.render.job import RenderError, RenderJob
+from nbv.render.noise import DepthNoise, incidence_angles, noisy_depth
 from nbv.render.raycast import render_raycast
 
 CAMERA = Intrinsics.centred(80, 60, 60.0)
@@ -390,3 +391,45 @@ def test_ray_culling_changes_nothing():
         assert np.array_equal(np.isfinite(every), np.isfinite(image))
         # Rays built in float32 here and in float64 there: depth agrees to float32 rounding.
         np.testing.assert_allclose(image[np.isfinite(image)], every[np.isfinite(every)], atol=1e-5)
+
+
+# -- the depth-sensor noise model ---------------------------------------------------------------
+
+
+def _plane_depth(tilt_deg: float, intrinsics: Intrinsics) -> np.ndarray:
+    """Ray-cast depth of a large square through the origin, seen from (0, 0, -1) looking at the
+    origin, its normal tilted ``tilt_deg`` from the camera's axis: (1, H, W)."""
+    t = np.radians(tilt_deg)
+    quad = np.array([[-3, -3, 0], [3, -3, 0], [3, 3, 0], [-3, 3, 0]], dtype=float)
+    rot = np.array([[np.cos(t), 0, np.sin(t)], [0, 1, 0], [-np.sin(t), 0, np.cos(t)]])
+    pose = np.eye(4)
+    pose[:3, 3] = [0, 0, -1]  # OpenCV camera axes: it looks along +z, at the origin
+    return render_raycast(quad @ rot.T, np.array([[0, 1, 2], [0, 2, 3]]), pose[None], intrinsics)
+
+
+def test_depth_noise_has_the_axial_sigma_and_grazing_dropout():
+    cam = Intrinsics.centred(160, 120, 119.0)
+    rng = np.random.default_rng
+    noise = DepthNoise()
+    # Facing the camera at depth 1: incidence near 0 in the centre, sigma = a + b (1 - z0)^2.
+    flat = _plane_depth(0.0, cam)
+    angle = incidence_angles(flat[0], cam)
+    assert np.degrees(angle[60, 80]) < 1.0 and angle[0, 0] == pytest.approx(np.pi / 2)
+    noisy = noisy_depth(flat, cam, noise, rng(0))
+    centre = (slice(50, 70), slice(70, 90))
+    sigma = noise.a + noise.b * (1.0 - noise.z0) ** 2
+    assert np.std(noisy[0][centre] - flat[0][centre]) == pytest.approx(sigma, rel=0.1)
+    assert np.isfinite(noisy[0][centre]).all()  # no dropout far from grazing
+    # Tilted 80 degrees: dropout probability (80 - 70) / (90 - 70) = 0.5 near the centre.
+    steep = _plane_depth(80.0, cam)
+    assert np.degrees(incidence_angles(steep[0], cam)[60, 80]) == pytest.approx(80.0, abs=1.0)
+    window = (slice(55, 65), slice(75, 85))
+    kept = np.isfinite(noisy_depth(steep, cam, noise, rng(0))[0][window]).mean()
+    assert kept == pytest.approx(0.5, abs=0.1)
+    # Seeded; the input stays untouched; background stays background.
+    again = noisy_depth(flat, cam, noise, rng(0))
+    np.testing.assert_array_equal(noisy, again)
+    assert not np.array_equal(noisy, noisy_depth(flat, cam, noise, rng(1)))
+    assert np.isinf(noisy_depth(np.full((1, 120, 160), np.inf), cam, noise, rng(0))).all()
+    with pytest.raises(ValueError, match="dropout_start"):
+        DepthNoise(dropout_start=95.0)

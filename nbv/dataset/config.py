@@ -20,6 +20,7 @@ from nbv.config.schema import (
     PathsConfig,
     ProtocolConfig,
     register,
+    schema_of,
     validated,
 )
 from nbv.dataset.samples import SampleSettings
@@ -27,6 +28,7 @@ from nbv.dataset.schema import SCHEMA_VERSION
 from nbv.dataset.sources import SOURCES
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
+from nbv.render.noise import DepthNoise
 
 __all__ = [
     "BACKENDS",
@@ -67,6 +69,7 @@ class Settings:
     threads: int = 0
     device: str = "CPU"
     chunk: int = 16
+    noise: DepthNoise | None = None
     progress: bool = True
 
     def __post_init__(self) -> None:
@@ -106,6 +109,8 @@ class Settings:
             "points_per_view": self.points_per_view,
             "keep_depth": self.keep_depth,
             "backend": self.backend,
+            # Only when on: datasets made before the option keep their identity.
+            **({"noise": asdict(self.noise)} if self.noise is not None else {}),
         }
 
 
@@ -120,6 +125,13 @@ class SyntheticConfig:
 
 
 @dataclass
+class NoiseConfig(schema_of(DepthNoise, "NoiseFields")):
+    """``renderer.noise:``: ``enabled`` and the fields of :class:`nbv.render.noise.DepthNoise`."""
+
+    enabled: bool = MISSING
+
+
+@dataclass
 class RendererConfig:
     """``renderer:``."""
 
@@ -128,6 +140,7 @@ class RendererConfig:
     threads: int = MISSING
     device: str = MISSING
     chunk: int = MISSING
+    noise: NoiseConfig = field(default_factory=NoiseConfig)
 
 
 @dataclass
@@ -206,8 +219,21 @@ def settings_from_config(cfg) -> Settings:
         threads=renderer["threads"],
         device=renderer["device"],
         chunk=renderer["chunk"],
+        noise=_noise(renderer["noise"]),
         progress=c["progress"],
     )
+
+
+def _noise(values: dict) -> DepthNoise | None:
+    """``renderer.noise`` as a :class:`DepthNoise`, None when off (its values are checked
+    either way)."""
+    values = dict(values)
+    enabled = values.pop("enabled")
+    try:
+        noise = DepthNoise(**values)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
+    return noise if enabled else None
 
 
 def sample_settings_from_config(cfg) -> SampleSettings | None:

@@ -38,6 +38,7 @@ from nbv.geometry.scores import covered_mask
 from nbv.geometry.viewspace import get_viewspace
 from nbv.render.backends import render
 from nbv.render.job import RenderError, RenderJob
+from nbv.render.noise import noisy_depth
 from nbv.utils.seeding import named_rng
 
 log = logging.getLogger(__name__)
@@ -197,7 +198,11 @@ def _prepare(model: SourceModel, settings: Settings, poses: np.ndarray):
 
 
 def _finish(prep: _Prepared, depth: np.ndarray, poses: dict, settings: Settings) -> ModelData:
-    """Turn one model's rendered depth (all viewspaces stacked) into its dataset record."""
+    """Turn one model's rendered depth (all viewspaces stacked) into its dataset record (the
+    sensor model of ``settings.noise`` applied first, seeded by the seed and the model)."""
+    if settings.noise is not None:
+        rng = named_rng(settings.seed, "depth-noise", prep.model.key)
+        depth = noisy_depth(depth, settings.intrinsics, settings.noise, rng)
     views, start = {}, 0
     for name, vs_poses in poses.items():
         stop = start + len(vs_poses)
