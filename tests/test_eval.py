@@ -438,3 +438,15 @@ def test_disturbed_policies_are_really_shown_disturbed_inputs(tiny):
             assert len(cloud) == max(len(start_cloud), 4)
             assert np.linalg.norm(cloud, axis=1).max() <= 0.5 + 1e-6
             assert not np.isin(cloud, start_cloud).any()
+
+
+def test_models_that_chose_a_checkpoint_are_not_scored(tiny, tmp_path):
+    keys = nbv.dataset.open(tiny["data"]).keys()
+    chosen = save_tiny_checkpoint(tmp_path / "chosen.pt", "points", selection_keys=[keys[0]])
+    ev = evaluate(tiny_settings(
+        tiny, tmp_path / "out", methods=("random", "spread", "pcnbv"), viewspaces=("original",),
+        checks=(), checkpoints={"pcnbv": str(chosen), "pcnbv_sph": str(tiny["pcnbv_sph"])},
+    ))  # fmt: skip
+    assert ev.datasets[0].keys == keys[1:]
+    assert ev.datasets[0].excluded == [(keys[0], "chose the checkpoint of pcnbv")]
+    assert {r.key for r in ev.records} == set(keys[1:])  # for every method, not only pcnbv

@@ -49,9 +49,11 @@ def make_tiny_dataset(out: Path, models: int = 2) -> Path:
     return out
 
 
-def save_tiny_checkpoint(path: Path, input: str = "points", seed: int = 0) -> Path:
+def save_tiny_checkpoint(
+    path: Path, input: str = "points", seed: int = 0, selection_keys: list[str] | None = None
+) -> Path:
     """An untrained tiny PCNBV saved the way training saves one (``extra``: input, lmax,
-    eval_points)."""
+    eval_points, and the models that chose it)."""
     import torch
 
     from nbv.models.checkpoints import save_checkpoint
@@ -60,7 +62,8 @@ def save_tiny_checkpoint(path: Path, input: str = "points", seed: int = 0) -> Pa
 
     torch.manual_seed(seed)
     net = PCNBV(PCNBVConfig(n_views=33, **TINY_NET)).eval()
-    save_checkpoint(path, net, {"input": input, "lmax": 2, "eval_points": 64})
+    extra = {"input": input, "lmax": 2, "eval_points": 64, "selection_keys": selection_keys or []}
+    save_checkpoint(path, net, extra)
     return path
 
 

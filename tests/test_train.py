@@ -254,6 +254,14 @@ def test_cli_trains_and_reports_bad_input(tiny_dataset, tmp_path):
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "cli" / "best.pt").exists()
+    # A sweep without out_dir trains in its own job folder: two sweeps never share a run.
+    sweep = base[:3] + ["-m"] + [a for a in base[3:] if not a.startswith("out_dir=")] + [
+        "fold=2", "epochs=1", "batch_size=8", "train_points=32", "eval_points=64",
+        "start_views=[1]", f"hydra.sweep.dir={tmp_path / 'sweep'}",
+    ]  # fmt: skip
+    done = subprocess.run(sweep, cwd=ROOT, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "sweep" / "tiny_coverage_fold2" / "heldout.json").exists()
     bad_fold = subprocess.run(base + ["fold=9"], cwd=ROOT, capture_output=True, text=True)
     assert bad_fold.returncode == 2 and "fold=9" in bad_fold.stderr
     bad_score = subprocess.run(base + ["score=loud"], cwd=ROOT, capture_output=True, text=True)

@@ -32,7 +32,8 @@ def test_two_job_sweep_on_slurm_then_summary(slurm_cluster, tmp_path):
     runs = find_runs(sweep)
     assert [r.name for r in runs] == ["tiny_coverage_fold1", "tiny_coverage_fold6"]
     assert all((r / "best.pt").exists() for r in runs)
-    rows = summarise(sweep, tmp_path / "summary")
-    assert len(rows) == 1 and rows[0]["folds"] == 2
-    assert {"fold1_cabinet", "fold6_table", "auc_mean", "auc_std"} <= set(rows[0])
+    groups = summarise(sweep, tmp_path / "summary")
+    assert len(groups) == 1 and [r["fold"] for r in groups[0]["runs"]] == [1, 6]
+    table = (tmp_path / "summary" / "cv_table.md").read_text()
+    assert "fold 1 (cabinet)" in table and "fold 6 (table)" in table and "network - spread" in table
     assert (tmp_path / "summary" / "cv_coverage_by_view.png").stat().st_size > 10_000
