@@ -7,7 +7,7 @@ against spread, the geometry-free rule that could explain the same numbers."""
 
 from __future__ import annotations
 
-from nbv.eval.tables import episode_means, paired_difference
+from nbv.eval.tables import episode_means, paired_from_means
 from nbv.eval.timing import timing_table
 from nbv.policies.registry import HULL_SCO, PCNBV, PCNBV_SPH, RANDOM, SPREAD
 from nbv.utils.markdown import md_table
@@ -37,14 +37,14 @@ class _Episodes:
     def __init__(self, records: list, dataset: str, seed: int) -> None:
         self.means = episode_means([r for r in records if r.dataset == dataset])
         self.dataset, self.seed = dataset, seed
-        self.records = records
 
     def has(self, vs: str, method: str, check: str | None = None) -> bool:
         return (self.dataset, vs, method, check) in self.means
 
     def diff(self, vs: str, a: str, b: str) -> Interval | None:
         """AUC(b) - AUC(a) on viewspace ``vs``."""
-        d = paired_difference(self.records, (a, None), (b, None), self.dataset, vs, self.seed)
+        key = (self.dataset, vs)
+        d = paired_from_means(self.means, (*key, a, None), (*key, b, None), self.seed)
         return d.interval if d else None
 
     def advantage_kept(self, method: str, base: str, fraction: float) -> Interval | None:
@@ -120,9 +120,10 @@ def _dataset_claims(records: list, d: str, times: dict, seed: int) -> list[str]:
     parts, oks = [], []
     for m in (PCNBV.name, PCNBV_SPH.name):
         if ep.has("original", m, "permuted_state") and ep.has("original", m, "random_cloud"):
-            diff = paired_difference(
-                records, (m, "random_cloud"), (m, "permuted_state"), d, "original", seed
-            )
+            diff = paired_from_means(
+                ep.means, (d, "original", m, "random_cloud"), (d, "original", m, "permuted_state"),
+                seed,
+            )  # fmt: skip
             oks.append(diff.interval.below_zero)
             parts.append(f"{m}: permuted state - random cloud {diff.interval.text(3)}")
     text = "; ".join(parts) + " (must lie below 0)" if parts else ""

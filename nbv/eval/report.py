@@ -24,11 +24,14 @@ from nbv.eval.disturb import auc_changes
 from nbv.eval.tables import (
     category_tables,
     curve_tables,
+    episode_means,
     fmt,
     groups,
     method_rank,
+    method_table,
     order_methods,
     paired_difference,
+    paired_from_means,
 )
 from nbv.eval.timing import COLUMNS, PAPER_TIMES, paper_ratios, timing_table
 from nbv.policies.registry import (
@@ -40,7 +43,7 @@ from nbv.policies.registry import (
 )
 from nbv.utils.atomic import write_text
 from nbv.utils.markdown import md_table
-from nbv.utils.stats import Interval
+from nbv.utils.stats import N_BOOT, Interval
 
 
 def _jsonable(value):
@@ -107,20 +110,17 @@ def verdict_of(diff: Interval, better: str, other: str) -> str:
 def baseline_tables(records, methods, datasets, viewspaces, seed: int) -> list[str]:
     """Every method minus spread and minus random, paired over the same episodes."""
     lines = []
+    means = episode_means([r for r in records if r.check is None])
     for base in (SPREAD.name, RANDOM.name):
         if base not in methods:
             continue
-        rows = []
-        for m in methods:
-            if m == base:
-                continue
-            row = [m]
-            for d in datasets:
-                for vs in viewspaces:
-                    diff = paired_difference(records, (base, None), (m, None), d, vs, seed)
-                    row.append(diff.interval.text(3) if diff else "")
-            rows.append(row)
-        if rows:
+        others = [m for m in methods if m != base]
+
+        def cell(m: str, d: str, vs: str, base: str = base) -> str:
+            diff = paired_from_means(means, (d, vs, base, None), (d, vs, m, None), seed)
+            return diff.interval.text(3) if diff else ""
+
+        if others:
             lines += [
                 "",
                 f"## AUC minus {base}, paired over the same episodes",
@@ -129,24 +129,20 @@ def baseline_tables(records, methods, datasets, viewspaces, seed: int) -> list[s
                 "method is better only when the whole interval lies above 0.",
                 "",
             ]
-            header = ["method"] + [f"{d} / {vs}" for d in datasets for vs in viewspaces]
-            lines += md_table(header, rows)
+            lines += method_table(others, datasets, viewspaces, cell)
     return lines
 
 
 def filler_table(g: dict, methods, datasets, viewspaces) -> list[str]:
     """Mean zero-gain picks per planner episode: picks the fill rule made, not the score."""
     planners = [m for m in methods if m in METHODS and METHODS[m].planner]
-    rows = []
-    for m in planners:
-        row = [m]
-        for d in datasets:
-            for vs in viewspaces:
-                c = g.get((d, vs, m, None))
-                row.append(f"{c['zero_gain']:.2f} of {c['planned']:.2f}" if c else "")
-        rows.append(row)
-    if not rows:
+    if not planners:
         return []
+
+    def cell(m: str, d: str, vs: str) -> str:
+        c = g.get((d, vs, m, None))
+        return f"{c['zero_gain']:.2f} of {c['planned']:.2f}" if c else ""
+
     return [
         "",
         "## Filler picks of the planners",
@@ -156,7 +152,7 @@ def filler_table(g: dict, methods, datasets, viewspaces) -> list[str]:
         "spread rule) chose them, not the planner's score. hull_sco_probes' random probes are "
         "not planner picks.",
         "",
-        *md_table(["method"] + [f"{d} / {vs}" for d in datasets for vs in viewspaces], rows),
+        *method_table(planners, datasets, viewspaces, cell),
     ]
 
 
@@ -247,20 +243,15 @@ def report_markdown(evaluation) -> str:
         "",
         "## AUC (mean [95 % bootstrap interval] over models x start views)",
         "",
-        f"Intervals resample models (seed {s.seed}, 10,000 draws). Random is averaged over "
+        f"Intervals resample models (seed {s.seed}, {N_BOOT:,} draws). Random is averaged over "
         f"{s.random_repeats} seeds per episode first.",
         "",
     ]
-    header = ["method"] + [f"{d} / {vs}" for d in datasets for vs in viewspaces]
-    rows = []
-    for m in methods:
-        row = [m]
-        for d in datasets:
-            for vs in viewspaces:
-                c = g.get((d, vs, m, None))
-                row.append(c["auc_ci"].text(3, signed=False) if c else "")
-        rows.append(row)
-    lines += md_table(header, rows)
+    lines += method_table(
+        methods, datasets, viewspaces,
+        lambda m, d, vs: g[(d, vs, m, None)]["auc_ci"].text(3, signed=False)
+        if (d, vs, m, None) in g else "",
+    )  # fmt: skip
     lines += baseline_tables(records, methods, datasets, viewspaces, s.seed)
     lines += filler_table(g, methods, datasets, viewspaces)
 

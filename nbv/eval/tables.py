@@ -177,8 +177,13 @@ def paired_difference(
         None when no episode is shared.
     """
     means = episode_means([r for r in records if r.dataset == dataset and r.viewspace == viewspace])
-    ea = means.get((dataset, viewspace, *a), {})
-    eb = means.get((dataset, viewspace, *b), {})
+    return paired_from_means(means, (dataset, viewspace, *a), (dataset, viewspace, *b), seed)
+
+
+def paired_from_means(means: dict, a: tuple, b: tuple, seed: int = 0) -> PairedDifference | None:
+    """:func:`paired_difference` on :func:`episode_means` already computed; ``a`` and ``b`` are
+    their (dataset, viewspace, method, check) keys."""
+    ea, eb = means.get(a, {}), means.get(b, {})
     shared = sorted(set(ea) & set(eb))
     if not shared:
         return None
@@ -187,3 +192,11 @@ def paired_difference(
     return PairedDifference(
         bootstrap_mean(xb - xa, [k for k, _ in shared], seed), float(xa.mean()), float(xb.mean())
     )
+
+
+def method_table(methods, datasets, viewspaces, cell) -> list[str]:
+    """A Markdown table of one row per method and one column per (dataset, viewspace); ``cell(
+    method, dataset, viewspace)`` gives each cell's text ("" for none)."""
+    header = ["method"] + [f"{d} / {vs}" for d in datasets for vs in viewspaces]
+    rows = [[m] + [cell(m, d, vs) for d in datasets for vs in viewspaces] for m in methods]
+    return md_table(header, rows)
