@@ -16,6 +16,7 @@ from nbv.geometry.scores import (
     vig_gains,
     vig_of_state,
 )
+from nbv.geometry.union import UnionHulls
 
 CUBE = np.array(list(itertools.product([0.0, 1.0], repeat=3)))
 
@@ -231,3 +232,46 @@ def test_vig_of_state_equals_the_hull_of_the_merged_cloud():
     assert vig_of_state(verts, np.zeros(12, dtype=bool), gt_volume) == 0.0
     with pytest.raises(ValueError, match="gt_volume"):
         vig_of_state(verts, np.zeros(12, dtype=bool), 0.0)
+
+
+def _views_of_a_sphere(rng: np.random.Generator, n_views: int = 12) -> list[np.ndarray]:
+    """Points of a unit sphere split into caps around random directions, one cap a view."""
+    pts = rng.normal(size=(6000, 3))
+    pts /= np.linalg.norm(pts, axis=1, keepdims=True)
+    dirs = rng.normal(size=(n_views, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    return [pts[pts @ d > 0.6] for d in dirs]
+
+
+def test_union_hulls_equal_the_hull_of_the_merged_views():
+    rng = np.random.default_rng(4)
+    views = _views_of_a_sphere(rng)
+    unions = UnionHulls([hull_vertices(v) for v in views])
+    for _ in range(40):
+        order = rng.permutation(len(views))[: rng.integers(1, len(views) + 1)]
+        for i in range(1, len(order) + 1):
+            merged = np.concatenate([views[v] for v in order[:i]])
+            assert unions.volume(order[:i]) == pytest.approx(hull_volume(merged), rel=1e-12)
+
+
+def test_union_hulls_memoise_each_set_once_whatever_the_order():
+    rng = np.random.default_rng(5)
+    unions = UnionHulls([hull_vertices(v) for v in _views_of_a_sphere(rng, 6)])
+    first = unions.volume([4, 1, 2])
+    size = len(unions)  # the empty set, {1}, {1, 2}, {1, 2, 4}: the path to the set
+    assert size == 4
+    assert unions.volume([2, 4, 1, 4]) == first
+    assert len(unions) == size
+    assert unions.volume([]) == 0.0
+    with pytest.raises(IndexError, match="outside 0..5"):
+        unions.volume([6])
+
+
+def test_union_hulls_grow_from_flat_and_single_views():
+    square = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], float)
+    unions = UnionHulls([square, square + [0, 0, 1], np.array([[0.5, 0.5, 3.0]])])
+    assert unions.volume([0]) == 0.0
+    assert unions.volume([2]) == 0.0
+    assert unions.volume([0, 2]) == pytest.approx(1.0)  # a pyramid of base 1 and height 3
+    assert unions.volume([0, 1]) == pytest.approx(1.0)  # the unit cube
+    assert unions.volume([0, 1, 2]) == pytest.approx(1.0 + 2.0 / 3.0)

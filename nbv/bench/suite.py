@@ -33,6 +33,7 @@ from nbv.geometry.scores import (
     vig_of_state,
 )
 from nbv.geometry.sph import equiangular_directions, signature, unit_vectors
+from nbv.geometry.union import UnionHulls
 from nbv.geometry.viewspace import original_viewspace
 from nbv.planning.hull import convex_hull, sample_hull
 from nbv.planning.planner import Plan
@@ -201,6 +202,16 @@ def run(
         lambda: ConvexHull(merged_state).volume / gt_vol,
         0.002,
         "per-view hull vertices vs hull of merged cloud",
+    )
+    episode = [1, 3, 7, 10, 15, 24, 27, 30, 0, 5]
+    row(
+        "VIG curve of a 10-view episode",
+        lambda: [UnionHulls(hulls).volume(episode[:i]) for i in range(1, 11)][-1] / gt_vol,
+        lambda: [
+            vig_of_state(hulls, np.isin(np.arange(33), episode[:i]), gt_vol) for i in range(1, 11)
+        ][-1],
+        None,
+        "unions grown from the last hull vs per-view vertices each step",
     )
     row(
         "view simulation, 33 views on a hull",

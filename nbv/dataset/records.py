@@ -6,10 +6,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from nbv.geometry.scores import coverage_from_bits, coverage_gains, vig_gains, vig_of_state
+from nbv.geometry.union import UnionHulls
 
 
 @dataclass
@@ -46,6 +48,12 @@ class ViewData:
         :func:`nbv.geometry.scores.vig_of_state`)."""
         h, o = self.hull_points.astype(np.float64), self.hull_offsets
         return [h[o[v] : o[v + 1]] for v in range(len(o) - 1)]
+
+    @cached_property
+    def unions(self) -> UnionHulls:
+        """Hull volumes of unions of these views, memoised for as long as this record lives
+        (the episodes of one model share many view sets)."""
+        return UnionHulls(self.view_hulls())
 
 
 @dataclass

@@ -67,6 +67,21 @@ def hull_volume(points: np.ndarray) -> float:
     return 0.0 if hull is None else float(hull.volume)
 
 
+def hull_volume_vertices(points: np.ndarray) -> tuple[float, np.ndarray]:
+    """:func:`hull_volume` and :func:`hull_vertices` of an ``(N, 3)`` cloud from one Qhull run:
+    ``(volume, (K, 3) float64 vertices)``.
+
+    Raises:
+        QhullFailure: as :func:`hull_volume`.
+        ValueError: non-finite values.
+    """
+    pts = as_cloud(points, "points")
+    hull = _hull(pts)
+    if hull is None:
+        return 0.0, hull_vertices(pts)
+    return float(hull.volume), pts[hull.vertices]
+
+
 def hull_vertices(points: np.ndarray) -> np.ndarray:
     """Points of an ``(N, 3)`` cloud that span its convex hull: ``(K, 3)`` float64, no duplicates.
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from nbv.dataset.records import ModelData
 from nbv.geometry.hull import QhullFailure
-from nbv.geometry.scores import coverage_from_bits, vig_of_state
+from nbv.geometry.scores import coverage_from_bits
 
 #: The start views of the evaluation protocol (indices into the original viewspace).
 DEFAULT_START_VIEWS = (1, 3, 7, 10, 15, 24, 27, 30)
@@ -92,17 +92,20 @@ def curves(
 
     VIG is NaN where it is undefined (a flat ground truth, or one Qhull failed on) and where
     Qhull fails on the union of the visited views; each such failure is added to ``notes``.
+    The hull volumes come from the view record's memo (:class:`nbv.geometry.union.UnionHulls`).
     """
     view = model.views[viewspace]
     n_gt = len(model.gt_points)
-    hulls = view.view_hulls() if model.gt_hull_volume > 0 else None
+    defined = model.gt_hull_volume > 0
     state = np.zeros(len(view.poses), dtype=bool)
     cov, vig = [], []
-    for v in views:
+    for i, v in enumerate(views):
         state[v] = True
         cov.append(coverage_from_bits(view.coverage, state, n_gt))
         try:
-            vig.append(vig_of_state(hulls, state, model.gt_hull_volume) if hulls else np.nan)
+            vig.append(
+                view.unions.volume(views[: i + 1]) / model.gt_hull_volume if defined else np.nan
+            )
         except QhullFailure as err:
             vig.append(np.nan)
             if notes is not None:
