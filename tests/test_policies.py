@@ -317,7 +317,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
     # it has not captured would pick otherwise on the blinded model.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 8
+    assert len(names) == 9
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])

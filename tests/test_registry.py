@@ -9,6 +9,7 @@ from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.volumetric import InformationGainPolicy
 from nbv.policies.registry import (
     CHECKS,
     METHODS,
@@ -44,7 +45,10 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
         assert kinds[name] is HullSCOPolicy
     # The planners share the context's settings; only the probing one takes probe views and
     # only the signature one plans on the signature.
-    for name in PLANNERS:
+    assert kinds["ig"] is InformationGainPolicy
+    ig = METHODS["ig"].build(ctx, np.random.default_rng(0))
+    assert ig.settings == ctx.volumetric and ig.intrinsics == SMALL_CAMERA
+    for name in [p for p in PLANNERS if p.startswith("hull_sco")]:
         policy = METHODS[name].build(ctx, np.random.default_rng(0))
         assert policy.settings.n_samp == 123 and policy.n_views == 7 and policy.eps == 0.02
         assert policy.intrinsics == SMALL_CAMERA
@@ -55,10 +59,10 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
 def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
         "random", "spread", "oracle", "pcnbv", "pcnbv_sph",
-        "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan",
+        "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig",
     ]  # fmt: skip
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature"}
-    assert PLANNERS == ("hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan")
+    assert PLANNERS == ("hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig")
     assert [m.name for m in METHODS.values() if m.ground_truth] == ["oracle"]
     assert check_methods("random_cloud") == ("pcnbv", "pcnbv_sph")
     assert check_methods("permuted_state") == ("pcnbv", "pcnbv_sph")

@@ -12,11 +12,13 @@ from shapes import cube_corners, fibonacci_sphere
 
 from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.scores import DEFAULT_EPS
+from nbv.geometry.sph import equiangular_directions, signature_with_centroid, unit_vectors
 from nbv.geometry.viewspace import original_viewspace
-from nbv.planning.hull import convex_hull, sample_hull, sample_on_hull
+from nbv.planning.hull import cameras_inside, convex_hull, sample_hull, sample_on_hull
 from nbv.planning.planner import plan, plan_sph, sph_hull_points
 from nbv.planning.set_cover import greedy_max_coverage, pack_sets
 from nbv.planning.settings import PlannerSettings
+from nbv.policies.hull import HullSCOPolicy
 from nbv.planning.view_sets import view_sets
 from nbv.utils.bits import popcount_rows
 
@@ -490,3 +492,39 @@ def test_raycast_planning_agrees_with_the_analytic_path():
             views, _ = greedy_max_coverage(sets[m], 4, exclude=[0], positions=positions)
             covered[m] = sets["raycast"][[0, *views]].any(axis=0).mean()
         assert covered["analytic"] >= covered["raycast"] - 0.02
+
+
+def _one_view_of_a_ball() -> np.ndarray:
+    """The cap of a ball of radius 0.4 that a camera at +z sees (a tenth of its surface)."""
+    ball = fibonacci_sphere(4000) * 0.4
+    return ball[ball[:, 2] > 0.32]
+
+
+def test_the_planning_signature_stays_within_the_cloud_that_fitted_it():
+    cap = _one_view_of_a_ball()
+    raw, centroid = signature_with_centroid(cap, 3)
+    extent = np.linalg.norm(cap - centroid, axis=1).max()
+    radius = np.linalg.norm(raw, axis=1)
+    assert radius.max() > 3 * extent  # a fit to one view extrapolates far past it
+    bounded = sph_hull_points(cap, 3)
+    assert np.linalg.norm(bounded - centroid, axis=1).max() <= extent + 1e-9
+    # Positive radii below the bound are kept: the same point, direction and length.
+    directions = unit_vectors(*equiangular_directions(3))
+    kept = (np.einsum("ij,ij->i", raw, directions) > 0) & (radius < extent)
+    assert kept.sum() >= 8
+    np.testing.assert_allclose(bounded[kept] - centroid, raw[kept], atol=1e-5)
+    assert not cameras_inside(convex_hull(bounded), original_viewspace()).any()
+
+
+def test_cameras_inside_a_hull_are_found_and_noted():
+    viewspace = original_viewspace()  # radius 1
+    big, small = convex_hull(cube_corners(1.5)), convex_hull(cube_corners(0.3))
+    assert cameras_inside(big, viewspace).all() and not cameras_inside(small, viewspace).any()
+    offset = convex_hull(cube_corners(0.3) + viewspace[0])  # around camera 0 only
+    np.testing.assert_array_equal(np.flatnonzero(cameras_inside(offset, viewspace)), [0])
+    policy = HullSCOPolicy(np.random.default_rng(0), PlannerSettings(n_samp=500))
+    policy.plan_from(cube_corners(0.3) + viewspace[0], viewspace_poses(viewspace), [5], 3)
+    assert policy.notes == [
+        "1 cameras inside the planning hull (views [0]): the analytic visibility assumes cameras "
+        "outside it"
+    ]

@@ -29,7 +29,7 @@ from nbv.config.schema import (
 )
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import get_viewspace
-from nbv.planning.settings import PlannerSettings
+from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
 from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS
 
@@ -78,6 +78,7 @@ class EvalSettings:
         }
     )
     hull: PlannerSettings = field(default_factory=PlannerSettings)
+    ig: VolumetricSettings = field(default_factory=VolumetricSettings)
     checks: tuple[str, ...] = CHECKS
     disturb_viewspaces: tuple[str, ...] = ("original",)
     disturb_start_views: tuple[int, ...] = (1, 10, 24)
@@ -175,6 +176,8 @@ def _names(value, key: str) -> tuple[str, ...]:
 
 #: ``hull:``: the fields of PlannerSettings.
 HullConfig = schema_of(PlannerSettings, "HullConfig")
+#: ``ig:``: the fields of VolumetricSettings.
+IGConfig = schema_of(VolumetricSettings, "IGConfig")
 
 
 @dataclass
@@ -219,6 +222,7 @@ class EvalConfig:
     n_views: int = MISSING
     checkpoints: dict[str, str] = MISSING
     hull: HullConfig = field(default_factory=HullConfig)
+    ig: IGConfig = field(default_factory=IGConfig)
     disturb: DisturbConfig = field(default_factory=DisturbConfig)
     random_repeats: int = MISSING
     seed: int = MISSING
@@ -255,7 +259,8 @@ def settings_from_config(cfg) -> EvalSettings:
     disturb_starts = start_views if disturb_starts is None else tuple(disturb_starts)
     try:
         hull = PlannerSettings(**c["hull"])
-    except ValueError as err:  # PlannerSettings names the hull.<key> it refuses
+        ig = VolumetricSettings(**c["ig"])
+    except ValueError as err:  # the settings name the hull.<key> or ig.<key> they refuse
         raise EvalConfigError(str(err)) from None
     camera = prep["camera"]
     return EvalSettings(
@@ -282,6 +287,7 @@ def settings_from_config(cfg) -> EvalSettings:
         n_views=c["n_views"],
         checkpoints=dict(checkpoints),
         hull=hull,
+        ig=ig,
         checks=_names(disturb["checks"], "disturb.checks"),
         disturb_viewspaces=_names(disturb["viewspace"], "disturb.viewspace"),
         disturb_start_views=disturb_starts,

@@ -264,7 +264,9 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     t0 = time.perf_counter()
     for info, ds in opened:
         eps = float(ds.attrs["eps"])
-        ctx = MethodContext(networks, settings.hull, ds.intrinsics, eps, settings.n_views)
+        ctx = MethodContext(
+            networks, settings.hull, ds.intrinsics, eps, settings.n_views, settings.ig
+        )
         for key in info.keys:
             model = ds.model(key, viewspaces=settings.viewspaces)
             if model.gt_hull_error:

@@ -136,6 +136,16 @@ def pixel_rays(intrinsics: Intrinsics) -> np.ndarray:
     return np.stack([uu, vv, np.ones_like(uu)], axis=-1)
 
 
+def rays_through(intrinsics: Intrinsics, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Camera-frame directions (unit z) through pixel coordinates ``u`` (columns) and ``v``
+    (rows), both (N,): ``(N, 3)`` float64, as :func:`pixel_rays` at those pixels."""
+    u, v = np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
+    return np.stack(
+        [(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones_like(u)],
+        axis=-1,
+    )
+
+
 def valid_depth(depth: np.ndarray) -> np.ndarray:
     """Boolean mask of pixels that hold a surface (finite, positive, below the background value)."""
     depth = np.asarray(depth)

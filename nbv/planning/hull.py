@@ -102,3 +102,21 @@ def sample_hull(
         ValueError: when the hull has no volume (see :func:`convex_hull`).
     """
     return sample_on_hull(convex_hull(points), n_samp, rng)
+
+
+def cameras_inside(hull: ConvexHull, positions: np.ndarray) -> np.ndarray:
+    """Which camera centres lie inside a hull (on its boundary counts as inside).
+
+    The analytic view simulation assumes every camera outside the hull it plans on: a camera
+    inside sees the hull's faces from behind and its view set is meaningless.
+
+    Args:
+        hull: from :func:`convex_hull`.
+        positions: (V, 3) camera centres, the hull's units.
+
+    Returns:
+        (V,) bool.
+    """
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    signed = positions @ hull.equations[:, :3].T + hull.equations[:, 3]
+    return (signed <= 1e-12).all(axis=1)

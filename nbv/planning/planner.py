@@ -9,7 +9,7 @@ import numpy as np
 from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.geometry.sph import signature_with_centroid
+from nbv.geometry.sph import equiangular_directions, signature_with_centroid, unit_vectors
 from nbv.planning.hull import convex_hull, sample_on_hull
 from nbv.planning.set_cover import DEFAULT_N_ITER, as_exclude, greedy_packed, pack_sets
 from nbv.planning.settings import PlannerSettings
@@ -148,18 +148,29 @@ def plan(
 
 
 def sph_hull_points(points: np.ndarray, lmax: int = 3) -> np.ndarray:
-    """The spherical signature of a cloud in world coordinates (at the cloud's centroid).
+    """The spherical signature of a cloud in world coordinates (at the cloud's centroid), its
+    radii bounded by the cloud.
+
+    A signature fitted to one view extrapolates far past what the view saw: radii up to 7 for
+    an object of radius 0.5, and many negative (a point on the far side of the centroid). Most
+    cameras would then sit inside its hull. Each radius is therefore clamped to ``[0, R]``, ``R``
+    the largest distance of a cloud point from the centroid: the hull stays within the sphere
+    about the centroid that holds the cloud.
 
     Args:
         points: ``(N, 3)`` cloud, world units.
         lmax: maximum harmonic degree (the paper's 3).
 
     Returns:
-        ``(4 (lmax + 1)^2, 3)`` float64 points: :func:`nbv.geometry.sph.signature_with_centroid`
-        shifted by the centroid.
+        ``(4 (lmax + 1)^2, 3)`` float64 points, in the order of
+        :func:`nbv.geometry.sph.equiangular_directions`.
     """
-    signature, centroid = signature_with_centroid(as_cloud(points, "points"), lmax)
-    return signature.astype(np.float64) + centroid
+    cloud = as_cloud(points, "points")
+    signature, centroid = signature_with_centroid(cloud, lmax)
+    directions = unit_vectors(*equiangular_directions(lmax))
+    radius = np.einsum("ij,ij->i", signature.astype(np.float64), directions)  # signed
+    extent = float(np.linalg.norm(cloud - centroid, axis=1).max())
+    return np.clip(radius, 0.0, extent)[:, None] * directions + centroid
 
 
 def plan_sph(

@@ -1,8 +1,11 @@
-"""The convex-hull planner's settings: one dataclass for the planner, policies and configs."""
+"""The planners' settings: one dataclass each for the planner, its policies and the configs."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from nbv.planning.information_gain import METRICS
+from nbv.planning.occupancy import OccupancySettings
 
 #: View simulations of the planner: ``analytic`` (exact for a convex hull, fast) or ``raycast``
 #: (renders the hull, about 100x slower).
@@ -44,3 +47,44 @@ class PlannerSettings:
         for key, ok, allowed in checks:
             if not ok:
                 raise ValueError(f"hull.{key}={getattr(self, key)!r}: must be {allowed}")
+
+
+@dataclass(frozen=True)
+class VolumetricSettings:
+    """How the volumetric information-gain planner maps and scores (``ig:`` in
+    ``conf/eval.yaml``).
+
+    Attributes:
+        resolution: voxel edge of the occupancy map, object units (the object fits in radius
+            0.5, the cameras sit at distance 1).
+        bound: the map covers the cube ``[-bound, bound]^3``, a whole number of voxels.
+        columns: rays across a candidate's image (rows in proportion: 16 gives 16 x 12).
+        metric: ``unobserved``, ``entropy``, ``rear_side_voxel`` or ``rear_side_entropy``
+            (:mod:`nbv.planning.information_gain`).
+        block: a captured view's rays that hit nothing are found in blocks of this many pixels
+            (:func:`nbv.planning.occupancy.background_directions`).
+    """
+
+    resolution: float = 0.02
+    bound: float = 0.56
+    columns: int = 16
+    metric: str = "unobserved"
+    block: int = 16
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("columns", self.columns >= 1, "an integer >= 1"),
+            ("metric", self.metric in METRICS, f"one of {', '.join(METRICS)}"),
+            ("block", self.block >= 1, "an integer >= 1 (pixels)"),
+        ]
+        for key, ok, allowed in checks:
+            if not ok:
+                raise ValueError(f"ig.{key}={getattr(self, key)!r}: must be {allowed}")
+        try:
+            self.occupancy()
+        except ValueError as err:
+            raise ValueError(f"ig.{err}") from None
+
+    def occupancy(self) -> OccupancySettings:
+        """The map's grid and sensor model."""
+        return OccupancySettings(resolution=self.resolution, bound=self.bound)

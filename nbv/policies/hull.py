@@ -9,7 +9,7 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.planning.hull import convex_hull
+from nbv.planning.hull import cameras_inside, convex_hull
 from nbv.planning.planner import Plan, plan, sph_hull_points
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
@@ -118,6 +118,7 @@ class HullSCOPolicy:
                 poses=poses,
             )
 
+        self._note_cameras_inside(cloud, poses)
         try:
             result = run(cloud)
         except ValueError as err:
@@ -136,6 +137,18 @@ class HullSCOPolicy:
         record_time(self.timings, "simulation", t["simulation"])
         record_time(self.timings, "set_cover", t["sets"] + t["greedy"])
         return result.views
+
+    def _note_cameras_inside(self, cloud: np.ndarray, poses: np.ndarray) -> None:
+        """Note the cameras inside the hull planned on: their views cannot be simulated."""
+        try:
+            inside = np.flatnonzero(cameras_inside(convex_hull(cloud), poses[:, :3, 3]))
+        except ValueError:  # a flat hull: no camera is inside it
+            return
+        if len(inside):
+            self.notes.append(
+                f"{len(inside)} cameras inside the planning hull (views {inside.tolist()}): the "
+                "analytic visibility assumes cameras outside it"
+            )
 
     def _probe_cloud(self, state: EpisodeState) -> np.ndarray:
         """The start view's cloud plus ``probe_points`` random points of each later view."""

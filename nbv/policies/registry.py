@@ -15,10 +15,11 @@ from typing import Any
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.settings import PlannerSettings
+from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.volumetric import InformationGainPolicy
 
 #: Disturbance checks (the paper's Fig. 18, and Gaussian position noise on the cloud a method
 #: sees): what each one replaces of a policy's input.
@@ -36,6 +37,7 @@ class MethodContext:
         eps: the dataset's coverage distance (the planner's capture distance: of the raycast
             simulation, and of the analytic one's dilation).
         n_views: views per episode, start view included.
+        volumetric: the information-gain planner's settings.
     """
 
     networks: Mapping[str, NetworkPolicy]
@@ -43,6 +45,7 @@ class MethodContext:
     intrinsics: Intrinsics
     eps: float
     n_views: int
+    volumetric: VolumetricSettings = field(default_factory=VolumetricSettings)
 
 
 Policy = Callable[[Any], "int | list[int]"]
@@ -171,6 +174,13 @@ HULL_SCO_REPLAN = Method(
     planner=True,
     style=("#2ca02c", "-."),
 )
+IG = Method(
+    "ig",
+    "volumetric information gain on an occupancy map of the captured views, replanned every view",
+    lambda ctx, rng: InformationGainPolicy(ctx.volumetric, ctx.intrinsics),
+    planner=True,
+    style=("#e377c2", "-"),
+)
 
 #: Every method, in report order.
 METHODS: dict[str, Method] = {
@@ -185,6 +195,7 @@ METHODS: dict[str, Method] = {
         HULL_SCO_SPH,
         HULL_SCO_PROBES,
         HULL_SCO_REPLAN,
+        IG,
     )
 }
 #: The methods that run a trained network: name -> the checkpoint input they need.

@@ -1,0 +1,203 @@
+"""A probabilistic occupancy map of the object's region, updated as OctoMap updates its octree.
+
+The object fits in a sphere of radius 0.5 and the cameras sit at distance 1, so the map is a
+dense cube ``[-bound, bound]^3`` of ``n^3`` voxels (166k at the default 2 cm). A view is a camera
+centre, its hit points and the directions of its rays that hit nothing:
+
+* the voxels a hit ray crosses before its hit are *free* (a miss update), the voxel of the hit
+  *occupied* (a hit update); a voxel both crossed and hit in one view takes only the hit, and
+  each voxel is updated once a view (OctoMap's ``insertPointCloud``);
+* a ray that hits nothing carves free space until it leaves the region;
+* voxels never crossed are *unknown*, except those outside the sphere the object fits in,
+  which start free.
+
+Log-odds updates are clamped, and a voxel is occupied at log-odds >= 0, with OctoMap's default
+probabilities (:class:`OccupancySettings`). The test suite checks the map against OctoMap itself
+(the ``octomap-python`` binding) on a scene of many views.
+
+Why not OctoMap's octree: scoring candidate views needs the state of every voxel along tens of
+thousands of rays per decision. Through the binding that is a few microseconds a voxel (its
+``getLabels`` reads 166k voxel centres in 0.36 s on this machine), far beyond the 50 ms a
+decision may take; a dense array of this small region reads them at numpy speed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from nbv.geometry.camera import Intrinsics, project, rays_through
+from nbv.planning.raytrace import traverse
+
+#: Voxel states of :meth:`OccupancyMap.labels` (OctoMap's getLabels values).
+UNKNOWN, FREE, OCCUPIED = -1, 0, 1
+
+
+def _logit(p: float) -> float:
+    return math.log(p / (1.0 - p))
+
+
+@dataclass(frozen=True)
+class OccupancySettings:
+    """The map's grid and sensor model.
+
+    Attributes:
+        resolution: voxel edge, object units (the object fits in radius 0.5).
+        bound: the region is the cube ``[-bound, bound]^3``; a whole number of voxels.
+        p_hit: occupancy probability a hit adds (OctoMap's default 0.7).
+        p_miss: occupancy probability a ray crossing a voxel adds (OctoMap's default 0.4).
+        clamp_min: lower clamp of a voxel's probability (OctoMap's 0.1192).
+        clamp_max: upper clamp (OctoMap's 0.971).
+        object_radius: voxels whose centre lies farther than this from the origin start free
+            at ``clamp_min`` (the object fits in radius 0.5: the cube's corners cannot hold it,
+            and no view would be worth taking to look at them); None: every voxel starts
+            unknown, as in OctoMap.
+    """
+
+    resolution: float = 0.02
+    bound: float = 0.56
+    p_hit: float = 0.7
+    p_miss: float = 0.4
+    clamp_min: float = 0.1192
+    clamp_max: float = 0.971
+    object_radius: float | None = 0.5
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("resolution", 0 < self.resolution <= 0.5, "in (0, 0.5]"),
+            ("bound", self.bound >= 0.5, ">= 0.5 (the object fits in radius 0.5)"),
+            ("p_hit", 0.5 < self.p_hit < 1, "in (0.5, 1)"),
+            ("p_miss", 0 < self.p_miss < 0.5, "in (0, 0.5)"),
+            ("clamp_min", 0 < self.clamp_min < 0.5, "in (0, 0.5)"),
+            ("clamp_max", 0.5 < self.clamp_max < 1, "in (0.5, 1)"),
+            ("object_radius", self.object_radius is None or self.object_radius > 0,
+             "null or a positive distance"),
+        ]  # fmt: skip
+        for key, ok, allowed in checks:
+            if not ok:
+                raise ValueError(f"{key}={getattr(self, key)!r}: must be {allowed}")
+        cells = 2 * self.bound / self.resolution
+        if abs(cells - round(cells)) > 1e-6:
+            raise ValueError(
+                f"bound={self.bound!r}: must be a whole number of voxels of resolution="
+                f"{self.resolution!r} from the centre (2 bound / resolution = {cells:.4f})"
+            )
+
+    @property
+    def n(self) -> int:
+        """Voxels along each axis."""
+        return round(2 * self.bound / self.resolution)
+
+
+def background_directions(
+    points: np.ndarray, pose: np.ndarray, intrinsics: Intrinsics, block: int
+) -> np.ndarray:
+    """World directions of the rays of a view that hit nothing, from the view's points.
+
+    The image is cut into ``block x block`` pixel blocks; a block that none of ``points``
+    projects into is background, and its ray passes through the block's centre. The dataset
+    keeps a uniform random subset of each view's pixels (2048 of them), so a block well inside
+    the silhouette is left empty only by chance: a 16-pixel block that lies wholly on an object
+    covering 100k pixels is empty with probability (1 - 256/100k)^2048, about 0.5 %.
+
+    Args:
+        points: (N, 3) world points of the view.
+        pose: (4, 4) its camera-to-world pose.
+        intrinsics: its camera.
+        block: block edge in pixels.
+
+    Returns:
+        (M, 3) unit world directions, one per background block.
+    """
+    if block < 1:
+        raise ValueError(f"block={block!r}: must be an integer >= 1 (pixels)")
+    rows, cols = -(-intrinsics.height // block), -(-intrinsics.width // block)
+    hit = np.zeros((rows, cols), dtype=bool)
+    uv, z = project(points, intrinsics, pose)
+    ok = (z > 0) & np.isfinite(uv).all(axis=1)
+    # Pixel centres sit at integer coordinates: pixel i spans [i - 0.5, i + 0.5).
+    px = np.floor(uv[ok] + 0.5).astype(np.int64)
+    inside = (px[:, 0] >= 0) & (px[:, 0] < intrinsics.width) & (px[:, 1] >= 0)
+    inside &= px[:, 1] < intrinsics.height
+    hit[px[inside, 1] // block, px[inside, 0] // block] = True
+    rr, cc = np.nonzero(~hit)
+    centre_v = np.minimum(rr * block + block // 2, intrinsics.height - 1)
+    centre_u = np.minimum(cc * block + block // 2, intrinsics.width - 1)
+    cam = rays_through(intrinsics, centre_u, centre_v)
+    world = cam @ np.asarray(pose, dtype=np.float64)[:3, :3].T
+    return world / np.linalg.norm(world, axis=1, keepdims=True)
+
+
+class OccupancyMap:
+    """Clamped log-odds occupancy of the region's voxels; NaN for unknown ones.
+
+    Attributes:
+        settings: the grid and sensor model.
+        log_odds: (n^3,) float64, flat voxel index as :mod:`nbv.planning.raytrace`.
+    """
+
+    def __init__(self, settings: OccupancySettings | None = None) -> None:
+        self.settings = settings or OccupancySettings()
+        self.log_odds = np.full(self.settings.n**3, np.nan)
+        if self.settings.object_radius is not None:
+            outside = np.linalg.norm(self.centres(), axis=1) > self.settings.object_radius
+            self.log_odds[outside] = _logit(self.settings.clamp_min)
+
+    def voxel_of(self, points: np.ndarray) -> np.ndarray:
+        """(N,) flat voxel index of each (N, 3) point; -1 outside the region."""
+        s = self.settings
+        ijk = np.floor((np.asarray(points, dtype=np.float64) + s.bound) / s.resolution)
+        ijk = ijk.astype(np.int64)
+        inside = ((ijk >= 0) & (ijk < s.n)).all(axis=1)
+        flat = (ijk[:, 0] * s.n + ijk[:, 1]) * s.n + ijk[:, 2]
+        return np.where(inside, flat, -1)
+
+    def insert_view(
+        self, origin: np.ndarray, hits: np.ndarray, miss_directions: np.ndarray | None = None
+    ) -> None:
+        """Add one view: rays from ``origin`` (3,) to each of ``hits`` (N, 3), and rays along
+        ``miss_directions`` (M, 3) that hit nothing (world units and frame)."""
+        s = self.settings
+        origin = np.asarray(origin, dtype=np.float64).reshape(3)
+        hits = np.asarray(hits, dtype=np.float64).reshape(-1, 3)
+        misses = np.zeros((0, 3)) if miss_directions is None else np.asarray(miss_directions, float)
+        # A miss ray ends beyond the region's far corner.
+        reach = np.linalg.norm(origin) + 2.0 * math.sqrt(3.0) * s.bound
+        norms = np.linalg.norm(misses, axis=1, keepdims=True)
+        far = origin + misses / np.where(norms > 0, norms, 1.0) * reach
+        before_hits = traverse(np.broadcast_to(origin, hits.shape), hits, s.n, s.bound, False)
+        carved = traverse(np.broadcast_to(origin, far.shape), far, s.n, s.bound)
+        # Each voxel once a view; a voxel both crossed and hit takes the hit (as OctoMap).
+        hit = np.zeros(len(self.log_odds), dtype=bool)
+        cells = self.voxel_of(hits)
+        hit[cells[cells >= 0]] = True
+        crossed = np.zeros(len(self.log_odds), dtype=bool)
+        for rays in (before_hits, carved):
+            crossed[rays[rays >= 0]] = True
+        self._update(np.flatnonzero(crossed & ~hit), _logit(s.p_miss))
+        self._update(np.flatnonzero(hit), _logit(s.p_hit))
+
+    def _update(self, voxels: np.ndarray, delta: float) -> None:
+        s = self.settings
+        current = np.nan_to_num(self.log_odds[voxels], nan=0.0)
+        self.log_odds[voxels] = np.clip(current + delta, _logit(s.clamp_min), _logit(s.clamp_max))
+
+    def labels(self) -> np.ndarray:
+        """(n^3,) int8: :data:`UNKNOWN`, :data:`FREE` or :data:`OCCUPIED` per voxel."""
+        out = np.full(len(self.log_odds), UNKNOWN, dtype=np.int8)
+        known = ~np.isnan(self.log_odds)
+        out[known] = np.where(self.log_odds[known] >= 0, OCCUPIED, FREE)
+        return out
+
+    def probability(self) -> np.ndarray:
+        """(n^3,) occupancy probability per voxel; 0.5 for unknown ones."""
+        return 1.0 / (1.0 + np.exp(-np.nan_to_num(self.log_odds, nan=0.0)))
+
+    def centres(self) -> np.ndarray:
+        """(n^3, 3) world coordinates of the voxel centres, flat index order."""
+        s = self.settings
+        axis = (np.arange(s.n) + 0.5) * s.resolution - s.bound
+        grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1)
+        return grid.reshape(-1, 3)

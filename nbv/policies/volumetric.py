@@ -1,0 +1,73 @@
+"""Volumetric information gain: the classical generate-and-test next-best view on an occupancy map.
+
+After every captured view the map (:mod:`nbv.planning.occupancy`) takes the view's rays, and each
+unvisited candidate is scored by casting rays through the map
+(:mod:`nbv.planning.information_gain`); the best one is taken. The policy reads the captured
+views' points and poses and the candidates' poses, nothing else.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from nbv.geometry.camera import Intrinsics
+from nbv.planning.information_gain import candidate_voxels, view_gains
+from nbv.planning.occupancy import OccupancyMap, background_directions
+from nbv.planning.settings import VolumetricSettings
+from nbv.policies.episode import EpisodeState
+from nbv.policies.inputs import record_time
+from nbv.utils.selection import masked_argmax
+
+
+@dataclass
+class InformationGainPolicy:
+    """The unvisited view of the highest information gain on the map of the captured views;
+    ties to the lowest index. ``counts`` holds its picks (``planned``) and those of zero gain
+    (``zero_gain``: the lowest-index fill once no candidate sees anything unknown)."""
+
+    settings: VolumetricSettings
+    intrinsics: Intrinsics
+    timings: dict[str, list[float]] = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=lambda: {"planned": 0, "zero_gain": 0})
+    occupancy: OccupancyMap | None = None
+    integrated: list[int] = field(default_factory=list)
+    # (V, R, S) voxels of every candidate's rays: fixed by the viewspace and the grid
+    candidates: np.ndarray | None = None
+
+    def update(self, state: EpisodeState) -> None:
+        """Insert the captured views not in the map yet."""
+        view = state.model.views[state.viewspace]
+        if self.occupancy is None:
+            self.occupancy = OccupancyMap(self.settings.occupancy())
+        for v in state.order:
+            if v in self.integrated:
+                continue
+            points = view.view_points(v)
+            misses = background_directions(
+                points, view.poses[v], self.intrinsics, self.settings.block
+            )
+            self.occupancy.insert_view(view.poses[v][:3, 3], points, misses)
+            self.integrated.append(v)
+
+    def __call__(self, state: EpisodeState) -> int:
+        t0 = time.perf_counter()
+        self.update(state)
+        t1 = time.perf_counter()
+        if self.candidates is None:
+            poses = state.model.views[state.viewspace].poses
+            self.candidates = candidate_voxels(
+                poses, self.intrinsics, self.settings.columns, self.occupancy.settings
+            )
+        gains = np.zeros(len(self.candidates))
+        open_ = np.flatnonzero(~state.view_state)
+        gains[open_] = view_gains(self.occupancy, self.candidates[open_], self.settings.metric)
+        choice = masked_argmax(gains, state.view_state)
+        record_time(self.timings, "map", t1 - t0)
+        record_time(self.timings, "gains", time.perf_counter() - t1)
+        self.counts["planned"] += 1
+        self.counts["zero_gain"] += int(gains[choice] <= 0)
+        return int(choice)

@@ -1,0 +1,199 @@
+"""The occupancy map and the information gain of views: voxel traversal against a brute-force
+slab test, the map against OctoMap itself, the compiled gains against plain numpy, and a scene
+with a pocket that only one view can look into."""
+
+import numpy as np
+import octomap
+import pytest
+import trimesh
+
+from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
+from nbv.geometry.viewspace import spread_views
+from nbv.planning.information_gain import METRICS, candidate_voxels, ray_gains, view_gains
+from nbv.planning.occupancy import (
+    FREE,
+    OCCUPIED,
+    UNKNOWN,
+    OccupancyMap,
+    OccupancySettings,
+    background_directions,
+)
+from nbv.planning.raytrace import traverse
+from nbv.planning.settings import VolumetricSettings
+from nbv.render.raycast import render_raycast
+
+
+def _slab_voxels(origin: np.ndarray, end: np.ndarray, n: int, bound: float) -> np.ndarray:
+    """Every voxel whose box the segment meets with positive length, by the segment's entry."""
+    res = 2 * bound / n
+    ijk = np.stack(np.meshgrid(*[np.arange(n)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    lo, hi = ijk * res - bound, (ijk + 1) * res - bound
+    d = end - origin
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta, tb = (lo - origin) / d, (hi - origin) / d
+    inside = (origin >= lo) & (origin < hi)
+    t0 = np.where(d == 0, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb)).max(axis=1)
+    t1 = np.where(d == 0, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb)).min(axis=1)
+    t0, t1 = np.maximum(t0, 0), np.minimum(t1, 1)
+    met = np.flatnonzero(t0 < t1)
+    return met[np.argsort(t0[met])]
+
+
+def test_traversal_meets_the_voxels_of_a_brute_force_slab_test_in_order():
+    rng = np.random.default_rng(0)
+    n, bound = 8, 0.5
+    origins = rng.uniform(-1.2, 1.2, (300, 3))
+    ends = np.where(np.arange(300)[:, None] % 2, rng.uniform(-0.8, 0.8, (300, 3)),
+                    rng.uniform(-1.5, 1.5, (300, 3)))  # fmt: skip
+    ends[:20, 1] = origins[:20, 1]  # segments parallel to a grid plane
+    got = traverse(origins, ends, n, bound)
+    for row, o, e in zip(got, origins, ends, strict=True):
+        np.testing.assert_array_equal(row[row >= 0], _slab_voxels(o, e, n, bound))
+    # Without the end voxel: one voxel fewer exactly for the segments that end inside.
+    short = traverse(origins, ends, n, bound, include_end=False)
+    inside = (np.abs(ends) < bound).all(axis=1)
+    counts, short_counts = (got >= 0).sum(axis=1), (short >= 0).sum(axis=1)
+    np.testing.assert_array_equal(short_counts, counts - (inside & (counts > 0)))
+
+
+def test_a_segment_that_misses_the_grid_crosses_nothing():
+    out = traverse(np.array([[2.0, 2.0, 2.0]]), np.array([[3.0, 2.0, 2.0]]), 4, 0.5)
+    assert out.shape == (1, 1) and out[0, 0] == -1
+
+
+def _views_of_a_ball(rng: np.random.Generator, n_views: int = 6):
+    ball = rng.normal(size=(3000, 3))
+    ball = ball / np.linalg.norm(ball, axis=1, keepdims=True) * 0.3
+    for _ in range(n_views):
+        centre = rng.normal(size=3)
+        centre /= np.linalg.norm(centre)
+        misses = rng.normal(size=(600, 3)) * 0.4 - centre
+        unit = misses / np.linalg.norm(misses, axis=1, keepdims=True)
+        # Rays that hit nothing pass the ball: their line keeps 0.35 from its centre.
+        passing = np.linalg.norm(np.cross(unit, -centre), axis=1) > 0.35
+        yield centre, ball[ball @ centre > 0.05], misses[passing]
+
+
+def test_the_map_matches_octomap_voxel_for_voxel():
+    settings = OccupancySettings(resolution=0.04, bound=0.56, object_radius=None)
+    ours = OccupancyMap(settings)
+    tree = octomap.OcTree(settings.resolution)
+    tree.setProbHit(settings.p_hit)
+    tree.setProbMiss(settings.p_miss)
+    tree.setClampingThresMin(settings.clamp_min)
+    tree.setClampingThresMax(settings.clamp_max)
+    reach = 1.0 + 2 * np.sqrt(3) * settings.bound
+    for centre, hits, misses in _views_of_a_ball(np.random.default_rng(1)):
+        ours.insert_view(centre, hits, misses)
+        # OctoMap carves a ray longer than maxrange free up to maxrange, and skips its end.
+        far = centre + misses / np.linalg.norm(misses, axis=1, keepdims=True) * (reach + 1)
+        tree.insertPointCloud(np.concatenate([hits, far]), centre, maxrange=reach)
+    labels = ours.labels()
+    theirs = np.asarray(tree.getLabels(ours.centres()))
+    np.testing.assert_array_equal(labels, theirs)
+    assert {UNKNOWN, FREE, OCCUPIED} <= set(labels.tolist())
+    # The same log-odds, not only the same side of 0.5.
+    known = np.flatnonzero(labels != UNKNOWN)[::97]
+    for v in known:
+        node = tree.search(ours.centres()[v])
+        assert node.getLogOdds() == pytest.approx(ours.log_odds[v], abs=1e-5)
+
+
+def _numpy_gains(log_odds: np.ndarray, voxels: np.ndarray, metric: str) -> np.ndarray:
+    """The metrics of nbv.planning.information_gain, on whole arrays."""
+    valid = voxels >= 0
+    value = log_odds[np.where(valid, voxels, 0)]
+    unknown = np.isnan(value) & valid
+    occupied = (value >= 0) & valid
+    before = valid & ~(np.cumsum(occupied, axis=1) > 0)
+    if metric == "unobserved":
+        return (unknown & before).sum(axis=1).astype(float)
+    p = np.where(valid, 1 / (1 + np.exp(-np.nan_to_num(value, nan=0.0))), 0.0)
+    q = np.clip(p, 1e-12, 1 - 1e-12)
+    h = -(q * np.log2(q) + (1 - q) * np.log2(1 - q))
+    visibility = np.concatenate([np.ones((len(p), 1)), np.cumprod(1 - p, axis=1)[:, :-1]], axis=1)
+    weighted = np.where(valid, visibility * h, 0.0)
+    if metric == "entropy":
+        return weighted.sum(axis=1)
+    first = np.argmax(occupied, axis=1)
+    rear = occupied.any(axis=1) & (first > 0)
+    rear &= unknown[np.arange(len(voxels)), np.maximum(first - 1, 0)]
+    if metric == "rear_side_voxel":
+        return rear.astype(float)
+    return np.where(rear, np.where(unknown & before, weighted, 0.0).sum(axis=1), 0.0)
+
+
+@pytest.mark.parametrize("metric", METRICS)
+def test_compiled_ray_gains_equal_plain_numpy(metric):
+    rng = np.random.default_rng(2)
+    occupancy = OccupancyMap(OccupancySettings(resolution=0.08, bound=0.56))
+    for centre, hits, misses in _views_of_a_ball(rng, 3):
+        occupancy.insert_view(centre, hits, misses)
+    origins = rng.normal(size=(400, 3))
+    origins /= np.linalg.norm(origins, axis=1, keepdims=True)
+    voxels = traverse(origins, -origins * 1.5, occupancy.settings.n, 0.56)
+    got = ray_gains(occupancy, voxels, metric)
+    np.testing.assert_allclose(got, _numpy_gains(occupancy.log_odds, voxels, metric), rtol=1e-12)
+    assert got.max() > 0
+    with pytest.raises(ValueError, match="metric='volume': must be one of unobserved"):
+        ray_gains(occupancy, voxels, "volume")
+
+
+def test_background_blocks_are_those_no_point_falls_in():
+    camera = Intrinsics.centred(64, 48, 48.0)
+    pose = viewspace_poses(np.array([[0.0, 0.0, 1.0]]))[0]
+    depth = np.full((48, 64), np.inf)
+    depth[:, :32] = 1.0  # the left half of the image sees a wall
+    points = backproject(depth, camera, pose)
+    directions = background_directions(points, pose, camera, block=16)
+    assert directions.shape == (6, 3)  # the right half: 2 x 3 blocks of 16 pixels
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0)
+    # They leave the camera through the right half of the image.
+    cam = directions @ pose[:3, :3]
+    assert (cam[:, 0] > 0).all() and (cam[:, 2] > 0).all()
+    with pytest.raises(ValueError, match="block=0"):
+        background_directions(points, pose, camera, block=0)
+
+
+def _cup() -> trimesh.Trimesh:
+    """A 0.7 x 0.5 x 0.5 box with a 0.3 x 0.3 pocket 0.6 deep, open towards +x."""
+    walls = [
+        ((-0.35, -0.25), (-0.25, 0.25), (-0.25, 0.25)),  # the pocket's bottom
+        ((-0.25, 0.35), (-0.25, -0.15), (-0.25, 0.25)),
+        ((-0.25, 0.35), (0.15, 0.25), (-0.25, 0.25)),
+        ((-0.25, 0.35), (-0.15, 0.15), (-0.25, -0.15)),
+        ((-0.25, 0.35), (-0.15, 0.15), (0.15, 0.25)),
+    ]
+    boxes = []
+    for bounds in walls:
+        lo, hi = np.array(bounds).T
+        boxes.append(trimesh.creation.box(bounds=np.stack([lo, hi])))
+    return trimesh.util.concatenate(boxes)
+
+
+@pytest.mark.parametrize("metric", ["unobserved", "rear_side_voxel", "rear_side_entropy"])
+def test_information_gain_looks_into_the_pocket_where_spread_does_not(metric):
+    # (entropy does not: it prefers views through lightly observed free space, whose voxels
+    # have an entropy near 1 after one crossing at OctoMap's p_miss = 0.4)
+    cup = _cup()
+    camera = Intrinsics.centred(96, 72, 72.0)
+    oblique = [(np.cos(a), np.sin(a) * np.cos(b), np.sin(a) * np.sin(b))
+               for a in [np.radians(40)] for b in np.radians([0, 90, 180, 270])]  # fmt: skip
+    diagonal = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    directions = np.array([(-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1), *oblique,
+                           (1, 0, 0), *diagonal], dtype=float)  # fmt: skip
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    poses = viewspace_poses(directions)
+    depth = render_raycast(cup.vertices, cup.faces, poses, camera)
+    captured = np.arange(len(directions)) < 9  # all around, but never into the pocket
+    settings = VolumetricSettings()
+    occupancy = OccupancyMap(settings.occupancy())
+    for v in np.flatnonzero(captured):
+        points = backproject(depth[v], camera, poses[v])
+        misses = background_directions(points, poses[v], camera, block=4)
+        occupancy.insert_view(poses[v][:3, 3], points, misses)
+    voxels = candidate_voxels(poses, camera, 16, occupancy.settings)
+    gains = view_gains(occupancy, voxels, metric)
+    into_pocket = 9
+    assert int(np.argmax(np.where(captured, -1, gains))) == into_pocket
+    assert spread_views(directions, captured, 1)[0] != into_pocket
