@@ -7,9 +7,16 @@ import octomap
 import pytest
 import trimesh
 
+from nbv.bench.volumetric import decision, numpy_ray_gains, numpy_traverse, plain_decision
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.viewspace import spread_views
-from nbv.planning.information_gain import METRICS, candidate_voxels, ray_gains, view_gains
+from nbv.planning.information_gain import (
+    METRICS,
+    candidate_voxels,
+    frontier,
+    ray_gains,
+    view_gains,
+)
 from nbv.planning.occupancy import (
     FREE,
     OCCUPIED,
@@ -56,6 +63,16 @@ def test_traversal_meets_the_voxels_of_a_brute_force_slab_test_in_order():
     np.testing.assert_array_equal(short_counts, counts - (inside & (counts > 0)))
 
 
+def test_the_numpy_reference_traverses_the_same_voxels():
+    rng = np.random.default_rng(3)
+    origins, ends = rng.uniform(-1.2, 1.2, (500, 3)), rng.uniform(-0.6, 0.6, (500, 3))
+    for include_end in (True, False):
+        np.testing.assert_array_equal(
+            numpy_traverse(origins, ends, 12, 0.6, include_end),
+            traverse(origins, ends, 12, 0.6, include_end),
+        )
+
+
 def test_a_segment_that_misses_the_grid_crosses_nothing():
     out = traverse(np.array([[2.0, 2.0, 2.0]]), np.array([[3.0, 2.0, 2.0]]), 4, 0.5)
     assert out.shape == (1, 1) and out[0, 0] == -1
@@ -99,30 +116,6 @@ def test_the_map_matches_octomap_voxel_for_voxel():
         assert node.getLogOdds() == pytest.approx(ours.log_odds[v], abs=1e-5)
 
 
-def _numpy_gains(log_odds: np.ndarray, voxels: np.ndarray, metric: str) -> np.ndarray:
-    """The metrics of nbv.planning.information_gain, on whole arrays."""
-    valid = voxels >= 0
-    value = log_odds[np.where(valid, voxels, 0)]
-    unknown = np.isnan(value) & valid
-    occupied = (value >= 0) & valid
-    before = valid & ~(np.cumsum(occupied, axis=1) > 0)
-    if metric == "unobserved":
-        return (unknown & before).sum(axis=1).astype(float)
-    p = np.where(valid, 1 / (1 + np.exp(-np.nan_to_num(value, nan=0.0))), 0.0)
-    q = np.clip(p, 1e-12, 1 - 1e-12)
-    h = -(q * np.log2(q) + (1 - q) * np.log2(1 - q))
-    visibility = np.concatenate([np.ones((len(p), 1)), np.cumprod(1 - p, axis=1)[:, :-1]], axis=1)
-    weighted = np.where(valid, visibility * h, 0.0)
-    if metric == "entropy":
-        return weighted.sum(axis=1)
-    first = np.argmax(occupied, axis=1)
-    rear = occupied.any(axis=1) & (first > 0)
-    rear &= unknown[np.arange(len(voxels)), np.maximum(first - 1, 0)]
-    if metric == "rear_side_voxel":
-        return rear.astype(float)
-    return np.where(rear, np.where(unknown & before, weighted, 0.0).sum(axis=1), 0.0)
-
-
 @pytest.mark.parametrize("metric", METRICS)
 def test_compiled_ray_gains_equal_plain_numpy(metric):
     rng = np.random.default_rng(2)
@@ -133,7 +126,8 @@ def test_compiled_ray_gains_equal_plain_numpy(metric):
     origins /= np.linalg.norm(origins, axis=1, keepdims=True)
     voxels = traverse(origins, -origins * 1.5, occupancy.settings.n, 0.56)
     got = ray_gains(occupancy, voxels, metric)
-    np.testing.assert_allclose(got, _numpy_gains(occupancy.log_odds, voxels, metric), rtol=1e-12)
+    reference = numpy_ray_gains(occupancy.log_odds, voxels, metric, frontier(occupancy))
+    np.testing.assert_allclose(got, reference, rtol=1e-12)
     assert got.max() > 0
     with pytest.raises(ValueError, match="metric='volume': must be one of unobserved"):
         ray_gains(occupancy, voxels, "volume")
@@ -197,3 +191,24 @@ def test_information_gain_looks_into_the_pocket_where_spread_does_not(metric):
     into_pocket = 9
     assert int(np.argmax(np.where(captured, -1, gains))) == into_pocket
     assert spread_views(directions, captured, 1)[0] != into_pocket
+
+
+def test_the_plain_decision_of_the_benchmark_is_the_planners():
+    cup = _cup()
+    camera = Intrinsics.centred(96, 72, 72.0)
+    poses = viewspace_poses(np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, 0, 1], [1, 1, 1.0]]))
+    depth = render_raycast(cup.vertices, cup.faces, poses, camera)
+    views = [(v, backproject(depth[v], camera, poses[v])) for v in (1, 3)]
+    settings = VolumetricSettings(resolution=0.04, block=4)
+    assert decision(views, poses, camera, settings) == plain_decision(
+        views, poses, camera, settings
+    )
+
+
+def test_the_frontier_is_the_unknown_ring_around_occupied_voxels():
+    occupancy = OccupancyMap(OccupancySettings(resolution=0.1, bound=0.5, object_radius=None))
+    n = occupancy.settings.n
+    occupancy.log_odds[(5 * n + 5) * n + 5] = 1.0  # one occupied voxel
+    occupancy.log_odds[(5 * n + 5) * n + 6] = -1.0  # a free neighbour
+    ring = frontier(occupancy).reshape(n, n, n)
+    assert ring.sum() == 25 and ring[4:7, 4:7, 4:7].sum() == 25

@@ -16,12 +16,14 @@ from nbv.dataset.generate import generate
 from nbv.planning.hull import convex_hull
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.planner import plan_sph
-from nbv.planning.settings import PlannerSettings
+from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
+from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS
+from nbv.policies.volumetric import InformationGainPolicy
 
 #: A PCNBV small enough to run in milliseconds (the sizes of tests/test_train.py).
 TINY_NET = dict(
@@ -86,6 +88,10 @@ def networks(tmp_path_factory):
     }
 
 
+#: The information-gain planner on the small camera: coarse voxels, 4-pixel background blocks.
+VOLUMETRIC = VolumetricSettings(resolution=0.04, columns=8, block=4)
+
+
 def all_policies(networks, seed: int = 0) -> dict:
     """One policy of every kind, seeded (the small camera of the dataset for the planners)."""
     rng = np.random.default_rng
@@ -105,6 +111,10 @@ def all_policies(networks, seed: int = 0) -> dict:
         ),
         "hull_sco_probes": HullSCOPolicy(rng(seed), probes=3, **hull),
         "hull_sco_replan": HullSCOReplanPolicy(rng(seed), **hull),
+        "ig": InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA),
+        "hull_ig": HullThenGainPolicy(
+            HullSCOPolicy(rng(seed), **hull), InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+        ),
     }
 
 
@@ -317,7 +327,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
     # it has not captured would pick otherwise on the blinded model.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 9
+    assert len(names) == 10
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])
@@ -356,3 +366,29 @@ def test_state_cloud_is_what_the_captured_views_saw(model):
     state = EpisodeState(model, "original", np.zeros(33, bool), [4, 9])
     view = model.views["original"]
     assert len(state.cloud()) == len(view.view_points(4)) + len(view.view_points(9))
+
+
+def test_information_gain_is_deterministic_and_maps_each_view_once(model):
+    first = InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+    a = run_episode(model, "original", 3, first)
+    b = run_episode(model, "original", 3, InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA))
+    assert a.views == b.views
+    # The last pick is made on the map of the 9 views before it; each went in once.
+    assert first.integrated == a.views[:-1]
+    assert first.counts["planned"] == len(a.views) - 1 == len(first.timings["gains"])
+
+
+def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):
+    hull = dict(intrinsics=SMALL_CAMERA, settings=PlannerSettings(n_samp=2048))
+    one_shot = HullSCOPolicy(np.random.default_rng(7), **hull)
+    plan = run_episode(model, "original", 10, one_shot).views[1:]
+    covering = [v for v, g in zip(plan, one_shot.last_gains, strict=True) if g > 0]
+    assert 0 < len(covering) < len(plan)  # the hull is covered before the episode ends
+    hybrid = HullThenGainPolicy(
+        HullSCOPolicy(np.random.default_rng(7), **hull),
+        InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA),
+    )
+    episode = run_episode(model, "original", 10, hybrid)
+    assert episode.views[1 : 1 + len(covering)] == covering
+    assert hybrid.gain.integrated == episode.views[:-1][: len(hybrid.gain.integrated)]
+    assert hybrid.counts["planned"] == len(covering) + hybrid.gain.counts["planned"] == 9

@@ -8,8 +8,8 @@ from datagen import SMALL_CAMERA
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
+from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.volumetric import InformationGainPolicy
 from nbv.policies.registry import (
     CHECKS,
     METHODS,
@@ -19,6 +19,7 @@ from nbv.policies.registry import (
     check_methods,
     method,
 )
+from nbv.policies.volumetric import InformationGainPolicy
 
 
 def _context(planner: PlannerSettings | None = None) -> MethodContext:
@@ -45,7 +46,7 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
         assert kinds[name] is HullSCOPolicy
     # The planners share the context's settings; only the probing one takes probe views and
     # only the signature one plans on the signature.
-    assert kinds["ig"] is InformationGainPolicy
+    assert kinds["ig"] is InformationGainPolicy and kinds["hull_ig"] is HullThenGainPolicy
     ig = METHODS["ig"].build(ctx, np.random.default_rng(0))
     assert ig.settings == ctx.volumetric and ig.intrinsics == SMALL_CAMERA
     for name in [p for p in PLANNERS if p.startswith("hull_sco")]:
@@ -60,9 +61,12 @@ def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
         "random", "spread", "oracle", "pcnbv", "pcnbv_sph",
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig",
+        "hull_ig",
     ]  # fmt: skip
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature"}
-    assert PLANNERS == ("hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig")
+    assert PLANNERS == (
+        "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig", "hull_ig",
+    )  # fmt: skip
     assert [m.name for m in METHODS.values() if m.ground_truth] == ["oracle"]
     assert check_methods("random_cloud") == ("pcnbv", "pcnbv_sph")
     assert check_methods("permuted_state") == ("pcnbv", "pcnbv_sph")

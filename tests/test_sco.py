@@ -18,8 +18,8 @@ from nbv.planning.hull import cameras_inside, convex_hull, sample_hull, sample_o
 from nbv.planning.planner import plan, plan_sph, sph_hull_points
 from nbv.planning.set_cover import greedy_max_coverage, pack_sets
 from nbv.planning.settings import PlannerSettings
-from nbv.policies.hull import HullSCOPolicy
 from nbv.planning.view_sets import view_sets
+from nbv.policies.hull import HullSCOPolicy
 from nbv.utils.bits import popcount_rows
 
 

@@ -22,6 +22,7 @@ from scipy.spatial import ConvexHull, cKDTree
 from nbv.assets.meshes import Mesh, normalise, sample_surface
 from nbv.assets.synthetic import build, catalogue
 from nbv.bench.timing import best_time
+from nbv.bench.volumetric import decision_row
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.clouds import farthest_points
 from nbv.geometry.hull import hull_volume
@@ -251,11 +252,12 @@ def run(
         0.050,
         "dilated analytic vs ray-cast simulation",
     )
+    # The views as the dataset stores them (points_per_view = 2048).
+    stored = [v[rng_pick(len(v), 2048, seed + i)] for i, v in enumerate(views)]
+    rows.append(decision_row(stored, scene["poses"], scene["intrinsics"]))
     if network:
         from nbv.bench.network import episode_seconds
 
-        # The views as the dataset stores them (points_per_view = 2048), start view 1.
-        stored = [v[rng_pick(len(v), 2048, seed + i)] for i, v in enumerate(views)]
         t = episode_seconds(stored, checkpoint)
         rows.append(
             dict(

@@ -11,7 +11,10 @@ summed over the candidate's rays (Delmerico et al., Autonomous Robots 2018; Isle
 * ``entropy``: occlusion-aware entropy, the sum of visibility times the voxel's binary entropy;
 * ``rear_side_voxel``: rays whose first occupied voxel is seen from an unknown voxel, that is
   rays that would see the unobserved back of a captured surface;
-* ``rear_side_entropy``: the visibility-weighted entropy of the unknown voxels of those rays.
+* ``rear_side_entropy``: the visibility-weighted entropy of the unknown voxels of those rays;
+* ``frontier``: unknown voxels before the first occupied voxel that touch an occupied voxel (of
+  their 26 neighbours): the unseen continuation of the captured surface, where the object's
+  uncovered surface can be.
 """
 
 from __future__ import annotations
@@ -20,13 +23,17 @@ import math
 
 import numba
 import numpy as np
+from scipy import ndimage
 
 from nbv.geometry.camera import Intrinsics, rays_through
-from nbv.planning.occupancy import OccupancyMap, OccupancySettings
+from nbv.planning.occupancy import OCCUPIED, UNKNOWN, OccupancyMap, OccupancySettings
 from nbv.planning.raytrace import traverse
 
 #: The metrics of :func:`view_gains`.
-METRICS = ("unobserved", "entropy", "rear_side_voxel", "rear_side_entropy")
+METRICS = ("unobserved", "entropy", "rear_side_voxel", "rear_side_entropy", "frontier")
+# The kernel's branch for each metric: frontier counts like unobserved, with its own weights.
+_KERNEL = {"unobserved": 0, "entropy": 1, "rear_side_voxel": 2, "rear_side_entropy": 3,
+           "frontier": 0}  # fmt: skip
 
 
 def candidate_rays(intrinsics: Intrinsics, columns: int) -> np.ndarray:
@@ -40,11 +47,12 @@ def candidate_rays(intrinsics: Intrinsics, columns: int) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _ray_gains(voxels, log_odds, metric):  # pragma: no cover - compiled
-    """Per-ray gains of ``METRICS[metric]`` (see :func:`ray_gains`), one pass along each row."""
+def _ray_gains(voxels, log_odds, weights, metric):  # pragma: no cover - compiled
+    """Per-ray gains of kernel branch ``metric`` (see :func:`ray_gains`), one pass along each
+    row; branch 0 sums ``weights`` of the unknown voxels before the first occupied one."""
     out = np.zeros(len(voxels))
     for r in range(len(voxels)):
-        visibility, unknown_before, entropy_before, entropy_all = 1.0, 0, 0.0, 0.0
+        visibility, unknown_before, entropy_before, entropy_all = 1.0, 0.0, 0.0, 0.0
         previous_unknown, rear, blocked = False, False, False
         for k in range(voxels.shape[1]):
             v = voxels[r, k]
@@ -58,7 +66,7 @@ def _ray_gains(voxels, log_odds, metric):  # pragma: no cover - compiled
                     break
             previous_unknown = unknown
             if unknown and not blocked:
-                unknown_before += 1
+                unknown_before += weights[v]
             if metric == 0 or metric == 2:  # counts: no probabilities needed
                 continue
             p = 0.5 if unknown else 1.0 / (1.0 + np.exp(-value))
@@ -84,7 +92,19 @@ def ray_gains(occupancy: OccupancyMap, voxels: np.ndarray, metric: str) -> np.nd
     float out (see the module docstring for ``metric``)."""
     if metric not in METRICS:
         raise ValueError(f"metric={metric!r}: must be one of {', '.join(METRICS)}")
-    return _ray_gains(np.ascontiguousarray(voxels), occupancy.log_odds, METRICS.index(metric))
+    if metric == "frontier":
+        weights = frontier(occupancy).astype(np.float64)
+    else:
+        weights = np.ones(len(occupancy.log_odds))
+    return _ray_gains(np.ascontiguousarray(voxels), occupancy.log_odds, weights, _KERNEL[metric])
+
+
+def frontier(occupancy: OccupancyMap) -> np.ndarray:
+    """(n^3,) bool: the unknown voxels with an occupied voxel among their 26 neighbours."""
+    n = occupancy.settings.n
+    labels = occupancy.labels().reshape(n, n, n)
+    near = ndimage.binary_dilation(labels == OCCUPIED, structure=np.ones((3, 3, 3), bool))
+    return (near & (labels == UNKNOWN)).ravel()
 
 
 def candidate_voxels(

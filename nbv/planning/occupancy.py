@@ -35,7 +35,8 @@ from nbv.planning.raytrace import traverse
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
 
 
-def _logit(p: float) -> float:
+def log_odds_of(p: float) -> float:
+    """The log-odds ``log(p / (1 - p))`` of a probability in (0, 1)."""
     return math.log(p / (1.0 - p))
 
 
@@ -143,7 +144,7 @@ class OccupancyMap:
         self.log_odds = np.full(self.settings.n**3, np.nan)
         if self.settings.object_radius is not None:
             outside = np.linalg.norm(self.centres(), axis=1) > self.settings.object_radius
-            self.log_odds[outside] = _logit(self.settings.clamp_min)
+            self.log_odds[outside] = log_odds_of(self.settings.clamp_min)
 
     def voxel_of(self, points: np.ndarray) -> np.ndarray:
         """(N,) flat voxel index of each (N, 3) point; -1 outside the region."""
@@ -176,13 +177,15 @@ class OccupancyMap:
         crossed = np.zeros(len(self.log_odds), dtype=bool)
         for rays in (before_hits, carved):
             crossed[rays[rays >= 0]] = True
-        self._update(np.flatnonzero(crossed & ~hit), _logit(s.p_miss))
-        self._update(np.flatnonzero(hit), _logit(s.p_hit))
+        self._update(np.flatnonzero(crossed & ~hit), log_odds_of(s.p_miss))
+        self._update(np.flatnonzero(hit), log_odds_of(s.p_hit))
 
     def _update(self, voxels: np.ndarray, delta: float) -> None:
         s = self.settings
         current = np.nan_to_num(self.log_odds[voxels], nan=0.0)
-        self.log_odds[voxels] = np.clip(current + delta, _logit(s.clamp_min), _logit(s.clamp_max))
+        self.log_odds[voxels] = np.clip(
+            current + delta, log_odds_of(s.clamp_min), log_odds_of(s.clamp_max)
+        )
 
     def labels(self) -> np.ndarray:
         """(n^3,) int8: :data:`UNKNOWN`, :data:`FREE` or :data:`OCCUPIED` per voxel."""

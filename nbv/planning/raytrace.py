@@ -12,7 +12,7 @@ import numba
 import numpy as np
 
 
-def _clip_to_box(origins: np.ndarray, deltas: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+def clip_to_box(origins: np.ndarray, deltas: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Segment parameters ``(t_in, t_out)`` (each ``(R,)``, 0 at the origin, 1 at the end) of
     the part of each segment inside the box ``[0, n]^3`` of grid coordinates; ``t_in >= t_out``
     for a segment that misses it."""
@@ -99,7 +99,7 @@ def traverse(
     scale = n / (2.0 * bound)
     start = np.ascontiguousarray((origins + bound) * scale)  # voxel i spans [i, i + 1)
     delta = np.ascontiguousarray((ends - origins) * scale)
-    t_in, t_out = _clip_to_box(start, delta, n)
+    t_in, t_out = clip_to_box(start, delta, n)
     # A segment crosses at most 3 n voxel faces inside the grid.
     out = np.full((len(origins), 3 * n + 1), -1, dtype=np.int32)
     counts = _walk(start, delta, t_in, t_out, n, out)

@@ -81,6 +81,8 @@ class HullSCOPolicy:
     #: ``planned``: views the planner chose; ``zero_gain``: those among them that newly cover
     #: no hull sample (the greedy's spread-out fill made them, not the planner's score).
     counts: dict[str, int] = field(default_factory=lambda: {"planned": 0, "zero_gain": 0})
+    #: The hull samples each view of the last plan newly covers, in plan order.
+    last_gains: list[int] = field(default_factory=list)
 
     def plan_from(
         self, cloud: np.ndarray, poses: np.ndarray, visited: list[int], n_iter: int
@@ -130,6 +132,7 @@ class HullSCOPolicy:
                 result = run(thicken(cloud))
             else:
                 raise
+        self.last_gains = [int(g) for g in result.gains]
         self.counts["planned"] += len(result.views)
         self.counts["zero_gain"] += sum(1 for g in result.gains if g <= 0)
         t = result.timings

@@ -18,6 +18,7 @@ from nbv.geometry.camera import Intrinsics
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
+from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 
@@ -181,6 +182,15 @@ IG = Method(
     planner=True,
     style=("#e377c2", "-"),
 )
+HULL_IG = Method(
+    "hull_ig",
+    "hull_sco's covering picks (its fill left out), then ig on the occupancy map",
+    lambda ctx, rng: HullThenGainPolicy(
+        _hull_policy(ctx, rng), InformationGainPolicy(ctx.volumetric, ctx.intrinsics)
+    ),
+    planner=True,
+    style=("#8c564b", "-"),
+)
 
 #: Every method, in report order.
 METHODS: dict[str, Method] = {
@@ -196,6 +206,7 @@ METHODS: dict[str, Method] = {
         HULL_SCO_PROBES,
         HULL_SCO_REPLAN,
         IG,
+        HULL_IG,
     )
 }
 #: The methods that run a trained network: name -> the checkpoint input they need.
