@@ -29,7 +29,7 @@ from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
 from nbv.eval.tables import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
-from nbv.planning.settings import PlannerSettings
+from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
 from nbv.policies.registry import PLANNERS, MethodContext
@@ -286,6 +286,19 @@ def test_bad_config_is_refused(override, message):
     assert message in str(err.value)
 
 
+def test_worker_processes_give_the_records_of_one_process(tiny, tmp_path):
+    kw = dict(methods=("random", "pcnbv", "ig"), viewspaces=("original",), checks=(),
+              random_repeats=2)  # fmt: skip
+    one = evaluate(tiny_settings(tiny, tmp_path / "one", **kw)).records
+    two = evaluate(tiny_settings(tiny, tmp_path / "two", workers=2, **kw)).records
+    assert len(one) == len(two) > 0
+    for a, b in zip(one, two, strict=True):
+        assert (a.method, a.key, a.start, a.repeat, a.views) == (b.method, b.key, b.start,
+                                                                 b.repeat, b.views)  # fmt: skip
+        np.testing.assert_array_equal(a.coverage, b.coverage)
+        np.testing.assert_array_equal(a.vig, b.vig)
+
+
 def test_default_config_composes_to_the_documented_defaults():
     from hydra import compose, initialize_config_dir
 
@@ -308,6 +321,7 @@ def test_default_config_composes_to_the_documented_defaults():
     assert s.checkpoints["pcnbv_sph"] == "outputs/train/pcnbv_sph_coverage_fold0/best.pt"
     assert s.check_start_views == (1, 10, 24)
     assert s.hull == PlannerSettings() and s.hull.dilate is False
+    assert s.ig == VolumetricSettings() and s.workers == 0
     assert compose_with(["hull.dilate=true"]).hull.dilate is True
     with_meshes = compose_with(["mesh_dir=" + str(ROOT / "tests")])
     assert with_meshes.datasets == ("unseen", "meshes")

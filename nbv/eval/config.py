@@ -87,6 +87,7 @@ class EvalSettings:
     random_repeats: int = 10
     seed: int = 0
     threads: int = 0
+    workers: int = 1
     progress: bool = True
     plots: bool = True
 
@@ -111,6 +112,8 @@ class EvalSettings:
             ("limit", self.limit, self.limit is None or self.limit >= 1,
              "null or an integer >= 1"),
             ("threads", self.threads, self.threads >= 0, "an integer >= 0 (0 = torch's default)"),
+            ("workers", self.workers, self.workers >= 0,
+             "an integer >= 0 (0 = one per available core, at most 8)"),
             ("disturb.radius", self.disturb_radius, self.disturb_radius > 0, "a positive distance"),
             ("disturb.noise", list(self.noise_sigmas),
              all(x > 0 for x in self.noise_sigmas) and len(set(self.noise_sigmas))
@@ -227,6 +230,7 @@ class EvalConfig:
     random_repeats: int = MISSING
     seed: int = MISSING
     threads: int = MISSING
+    workers: int = MISSING
     progress: bool = MISSING
     plots: bool = MISSING
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
@@ -296,6 +300,7 @@ def settings_from_config(cfg) -> EvalSettings:
         random_repeats=c["random_repeats"],
         seed=c["seed"],
         threads=c["threads"],
+        workers=c["workers"],
         progress=c["progress"],
         plots=c["plots"],
     )

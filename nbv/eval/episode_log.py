@@ -3,7 +3,7 @@
 ``<out_dir>/episodes.jsonl`` is written line by line as the evaluation goes:
 
 * line 1: ``{"identity": "<hash>"}``, a hash of everything that decides the episodes (the
-  settings except the run name, progress bar, plots and threads; the bytes of the network
+  settings except the run name, progress bar, plots, threads and workers; the bytes of the network
   checkpoints that run; the names, sizes and modification times of the dataset files);
 * then, for every finished model, its episode records (``EpisodeRecord.to_json``), one a line,
   followed by ``{"done": [dataset, key]}``.
@@ -29,7 +29,7 @@ from nbv.utils.atomic import append_durably
 
 LOG_NAME = "episodes.jsonl"
 #: Settings that do not change any episode.
-_NOT_IDENTITY = ("out_dir", "progress", "plots", "threads")
+_NOT_IDENTITY = ("out_dir", "progress", "plots", "threads", "workers")
 
 
 def _plain(value):

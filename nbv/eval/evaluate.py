@@ -11,7 +11,9 @@ so an interrupted evaluation resumes where it stopped. :func:`run` also writes t
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -232,6 +234,61 @@ def _jobs(settings: EvalSettings, runnable: list[str]) -> list[Job]:
     return jobs
 
 
+class ModelTask(NamedTuple):
+    """One model's episodes, as a worker process runs them (everything in it pickles)."""
+
+    settings: EvalSettings
+    dataset: str
+    path: Path
+    key: str
+    jobs: list[Job]
+    ctx: MethodContext
+
+
+class ModelResult(NamedTuple):
+    """What a worker returns for one model: its records and what its ground truth is."""
+
+    dataset: str
+    key: str
+    records: list[EpisodeRecord]
+    gt_hull_error: str
+    flat: bool
+
+
+def run_model(task: ModelTask) -> ModelResult:
+    """Every job's episode on one model (in a worker process, or in this one)."""
+    settings, ds = task.settings, nbv.dataset.open(task.path)
+    model = ds.model(task.key, viewspaces=settings.viewspaces)
+    records = []
+    for job in task.jobs:
+        # Repeat 0 keeps the generator of a single run: one seed's numbers stay.
+        names = (job.method, job.check or "", task.key, job.viewspace, job.start)
+        rng = episode_rng(settings.seed, *names, *([job.repeat] if job.repeat else []))
+        policy = METHODS[job.method].build(task.ctx, rng)
+        if job.kind is not None:
+            policy = disturbed(job.kind, policy, rng, settings.disturb_radius, job.sigma)
+        records.append(
+            run_record(model, job.viewspace, job.start, job.method, policy, task.dataset,
+                       settings.n_views, job.check, job.repeat)
+        )  # fmt: skip
+    flat = not model.gt_hull_error and not model.gt_hull_volume > 0
+    return ModelResult(task.dataset, task.key, records, model.gt_hull_error, flat)
+
+
+def _worker_start(threads: int) -> None:
+    import torch
+
+    torch.set_num_threads(threads)
+
+
+def worker_count(settings: EvalSettings) -> int:
+    """Worker processes of a run: ``settings.workers``, or one per available core (at most 8)
+    when it is 0."""
+    if settings.workers:
+        return settings.workers
+    return max(1, min(8, len(os.sched_getaffinity(0))))
+
+
 def evaluate(settings: EvalSettings) -> Evaluation:
     """Run every episode of the settings (see the module docstring)."""
     from tqdm import tqdm
@@ -243,10 +300,11 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         log.warning("skipping %s: %s", method, reason)
     for info, ds in opened:
         exclude_selection(info, ds, networks)
-    if settings.threads:
+    workers = worker_count(settings)
+    if settings.threads or workers > 1:
         import torch
 
-        torch.set_num_threads(settings.threads)
+        torch.set_num_threads(settings.threads or 1)
     runnable = [m for m in settings.methods if m not in skipped]
     jobs = _jobs(settings, runnable)
     ident = identity(
@@ -258,46 +316,64 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     if episodes.done:
         log.info("resuming: %d models done in %s", len(episodes.done), episodes.path)
     total = sum(len(info.keys) for info, _ in opened) * len(jobs)
-    records: list[EpisodeRecord] = []
-    resumed = 0
-    bar = tqdm(total=total, desc="episodes", unit="ep", disable=not settings.progress)
-    t0 = time.perf_counter()
+    infos = {info.name: info for info, _ in opened}
+    tasks, done_before = [], {}
     for info, ds in opened:
-        eps = float(ds.attrs["eps"])
         ctx = MethodContext(
-            networks, settings.hull, ds.intrinsics, eps, settings.n_views, settings.ig
-        )
+            networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]), settings.n_views,
+            settings.ig,
+        )  # fmt: skip
         for key in info.keys:
-            model = ds.model(key, viewspaces=settings.viewspaces)
-            if model.gt_hull_error:
-                info.qhull_failures.append((key, model.gt_hull_error))
-            elif not model.gt_hull_volume > 0:
-                info.flat.append(key)
             done = episodes.done.get((info.name, key))
             if done is None:
-                done = []
-                for job in jobs:
-                    # Repeat 0 keeps the generator of a single run: one seed's numbers stay.
-                    names = (job.method, job.check or "", key, job.viewspace, job.start)
-                    rng = episode_rng(settings.seed, *names, *([job.repeat] if job.repeat else []))
-                    policy = METHODS[job.method].build(ctx, rng)
-                    if job.kind is not None:
-                        policy = disturbed(
-                            job.kind, policy, rng, settings.disturb_radius, job.sigma
-                        )
-                    done.append(
-                        run_record(model, job.viewspace, job.start, job.method, policy,
-                                   info.name, settings.n_views, job.check, job.repeat)
-                    )  # fmt: skip
-                    bar.update()
-                episodes.append(info.name, key, done)
+                tasks.append(ModelTask(settings, info.name, info.path, key, jobs, ctx))
             else:
-                bar.update(len(jobs))
-                resumed += len(done)
-            records += done
+                done_before[(info.name, key)] = done
+    bar = tqdm(total=total, desc="episodes", unit="ep", disable=not settings.progress)
+    bar.update(sum(len(d) for d in done_before.values()))
+    t0 = time.perf_counter()
+    results: dict[tuple[str, str], ModelResult] = {}
+    with _pool(workers, settings.threads or 1, len(tasks)) as pool:
+        for result in pool(run_model, tasks):
+            episodes.append(result.dataset, result.key, result.records)
+            results[(result.dataset, result.key)] = result
+            bar.update(len(result.records))
     bar.close()
-    return Evaluation(settings, records, skipped, [info for info, _ in opened],
-                      time.perf_counter() - t0, resumed)  # fmt: skip
+    seconds = time.perf_counter() - t0
+    records: list[EpisodeRecord] = []
+    for info, ds in opened:
+        for key in info.keys:
+            if (info.name, key) in done_before:
+                model = ds.model(key, viewspaces=())
+                records += done_before[(info.name, key)]
+                error, flat = model.gt_hull_error, not model.gt_hull_volume > 0
+            else:
+                result = results[(info.name, key)]
+                records += result.records
+                error, flat = result.gt_hull_error, result.flat
+            if error:
+                infos[info.name].qhull_failures.append((key, error))
+            elif flat:
+                infos[info.name].flat.append(key)
+    resumed = sum(len(d) for d in done_before.values())
+    return Evaluation(settings, records, skipped, [info for info, _ in opened], seconds, resumed)
+
+
+@contextlib.contextmanager
+def _pool(workers: int, threads: int, tasks: int):
+    """``map(fn, items)`` in order: in this process, or over ``workers`` spawned processes of
+    ``threads`` torch threads each (spawned: forking a process that ran OpenMP is unsafe)."""
+    if workers <= 1 or tasks <= 1:
+        yield map
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    context = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(
+        min(workers, tasks), mp_context=context, initializer=_worker_start, initargs=(threads,)
+    ) as executor:
+        yield executor.map
 
 
 def run(settings: EvalSettings) -> Path:

@@ -63,6 +63,9 @@ class VolumetricSettings:
             (:mod:`nbv.planning.information_gain`).
         block: a captured view's rays that hit nothing are found in blocks of this many pixels
             (:func:`nbv.planning.occupancy.background_directions`).
+        spread_weight: adds this times a candidate's smallest angle to the visited views (in
+            units of 180 degrees) to its gain divided by the best candidate's gain: 0 ranks by
+            gain alone.
     """
 
     resolution: float = 0.02
@@ -70,12 +73,14 @@ class VolumetricSettings:
     columns: int = 16
     metric: str = "unobserved"
     block: int = 16
+    spread_weight: float = 0.0
 
     def __post_init__(self) -> None:
         checks = [
             ("columns", self.columns >= 1, "an integer >= 1"),
             ("metric", self.metric in METRICS, f"one of {', '.join(METRICS)}"),
             ("block", self.block >= 1, "an integer >= 1 (pixels)"),
+            ("spread_weight", self.spread_weight >= 0, ">= 0"),
         ]
         for key, ok, allowed in checks:
             if not ok:

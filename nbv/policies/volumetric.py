@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics
+from nbv.geometry.viewspace import angular_distances
 from nbv.planning.information_gain import candidate_voxels, view_gains
 from nbv.planning.occupancy import OccupancyMap, background_directions
 from nbv.planning.settings import VolumetricSettings
@@ -65,7 +66,12 @@ class InformationGainPolicy:
         gains = np.zeros(len(self.candidates))
         open_ = np.flatnonzero(~state.view_state)
         gains[open_] = view_gains(self.occupancy, self.candidates[open_], self.settings.metric)
-        choice = masked_argmax(gains, state.view_state)
+        score = gains
+        if self.settings.spread_weight > 0 and gains.max() > 0:
+            positions = state.model.views[state.viewspace].poses[:, :3, 3]
+            nearest = angular_distances(positions, positions[state.view_state]).min(axis=1)
+            score = gains / gains.max() + self.settings.spread_weight * nearest / 180.0
+        choice = masked_argmax(score, state.view_state)
         record_time(self.timings, "map", t1 - t0)
         record_time(self.timings, "gains", time.perf_counter() - t1)
         self.counts["planned"] += 1
