@@ -17,7 +17,7 @@ from nbv.bench.timing import best_time
 from nbv.geometry.camera import Intrinsics
 from nbv.planning.information_gain import candidate_rays, candidate_voxels, frontier, view_gains
 from nbv.planning.occupancy import OccupancyMap, background_directions, log_odds_of
-from nbv.planning.raytrace import clip_to_box
+from nbv.planning.raytrace import clip_to_box, drop_end_voxels
 from nbv.planning.settings import VolumetricSettings
 
 
@@ -53,12 +53,7 @@ def numpy_traverse(
         active = active[((cell[active] >= 0) & (cell[active] < n)).all(axis=1)]
     counts = (out >= 0).sum(axis=1)
     if not include_end:
-        rows = np.flatnonzero((t_out >= 1.0) & (counts > 0))
-        end = np.clip(np.floor(start[rows] + delta[rows]), 0, n - 1).astype(np.int64)
-        flat = (end[:, 0] * n + end[:, 1]) * n + end[:, 2]
-        last = counts[rows] - 1
-        hit = out[rows, last] == flat
-        out[rows[hit], last[hit]] = -1
+        drop_end_voxels(out, counts, start + delta, t_out, n)
     return out[:, : max(int(counts.max(initial=0)), 1)]
 
 

@@ -104,11 +104,26 @@ def traverse(
     out = np.full((len(origins), 3 * n + 1), -1, dtype=np.int32)
     counts = _walk(start, delta, t_in, t_out, n, out)
     if not include_end:
-        # A segment that ends inside the grid ends in its last voxel.
-        rows = np.flatnonzero((t_out >= 1.0) & (counts > 0))
-        end_cell = np.clip(np.floor(start[rows] + delta[rows]), 0, n - 1).astype(np.int64)
-        end_flat = (end_cell[:, 0] * n + end_cell[:, 1]) * n + end_cell[:, 2]
-        last = counts[rows] - 1
-        hit = out[rows, last] == end_flat
-        out[rows[hit], last[hit]] = -1
+        drop_end_voxels(out, counts, start + delta, t_out, n)
     return out[:, : max(int(counts.max(initial=0)), 1)]
+
+
+def drop_end_voxels(
+    out: np.ndarray, counts: np.ndarray, ends: np.ndarray, t_out: np.ndarray, n: int
+) -> None:
+    """Blank (-1) the end voxel of every segment that ends inside the grid, in place: it is a
+    segment's last voxel there.
+
+    Args:
+        out: (R, S) voxel rows of the traversal.
+        counts: (R,) voxels in each row.
+        ends: (R, 3) segment ends, grid coordinates.
+        t_out: (R,) segment parameter where each leaves the grid (>= 1: it ends inside).
+        n: voxels along each axis.
+    """
+    rows = np.flatnonzero((t_out >= 1.0) & (counts > 0))
+    end_cell = np.clip(np.floor(ends[rows]), 0, n - 1).astype(np.int64)
+    end_flat = (end_cell[:, 0] * n + end_cell[:, 1]) * n + end_cell[:, 2]
+    last = counts[rows] - 1
+    hit = out[rows, last] == end_flat
+    out[rows[hit], last[hit]] = -1
