@@ -308,7 +308,9 @@ def test_blender_crash_restarts_for_the_rest(tmp_path):
     """Killing the Blender process fails the mesh it was on; a new process renders the rest."""
     box, parts = _box_at_x(), _two_parts()
     jobs = [
-        RenderJob("first", box.vertices, box.faces, POSES),
+        # 100 views: the first mesh lasts seconds, so a killer thread slowed by a busy machine
+        # still finds its process before it is done.
+        RenderJob("first", box.vertices, box.faces, np.concatenate([POSES] * 25)),
         RenderJob("second", parts.vertices, parts.faces, POSES[:2]),
         RenderJob("third", box.vertices, box.faces, POSES[:2]),
     ]
