@@ -82,11 +82,11 @@ def test_full_run_writes_every_output(full_run):
     plain = [e for e in episodes if e["check"] is None]
     # 2 models x 2 viewspaces x 11 methods (random with 10 seeds) x 2 starts, then the checks on
     # 1 start of original: 2 networks x 2 checks + the random hull + 3 noise levels x (2
-    # networks + 2 one-shot planners) = 17 x 2 models x 1 start.
+    # networks + 2 one-shot planners + ig) = 20 x 2 models x 1 start.
     assert len(METHODS_BY_NAME) == 11
     assert len(plain) == 2 * 2 * (10 + 10) * 2
     assert sorted(e["repeat"] for e in plain if e["method"] == "random")[-1] == 9
-    assert len(episodes) - len(plain) == 17 * 2
+    assert len(episodes) - len(plain) == 20 * 2
     assert data["skipped"] == {}
     for e in episodes:
         assert len(e["views"]) == len(e["coverage"]) == len(e["vig"]) == 10
@@ -102,7 +102,7 @@ def test_full_run_writes_every_output(full_run):
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 2 * 11 + 17  # (viewspace, method) pairs, then the checks
+    assert len(rows) == 2 * 11 + 20  # (viewspace, method) pairs, then the checks
     by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
     random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
     assert float(by[("original", "random", "")]["auc"]) == pytest.approx(
@@ -180,7 +180,7 @@ def test_disturbances(full_run, tiny, tmp_path):
     data = json.loads((full_run / "results.json").read_text())
     checks = {(e["check"], e["method"]) for e in data["episodes"] if e["check"]}
     noisy = {(f"position_noise_{x}", m) for x in ("0.002", "0.005", "0.01")
-             for m in ("pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph")}  # fmt: skip
+             for m in ("pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph", "ig")}  # fmt: skip
     assert checks == {("random_cloud", "pcnbv"), ("random_cloud", "pcnbv_sph"),
                       ("permuted_state", "pcnbv"), ("permuted_state", "pcnbv_sph"),
                       ("random_hull", "hull_sco")} | noisy  # fmt: skip

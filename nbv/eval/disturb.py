@@ -28,6 +28,7 @@ from nbv.policies.episode import EpisodeState
 from nbv.policies.hull import HullSCOPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import CHECKS
+from nbv.policies.volumetric import InformationGainPolicy
 
 
 def random_ball(n: int, radius: float, rng: np.random.Generator) -> np.ndarray:
@@ -105,13 +106,14 @@ class RandomHullPlanner(_Wrapper):
 
 @dataclass
 class NoisyPoints(_Wrapper):
-    """The wrapped policy sees every view's points moved by Gaussian noise of ``sigma``.
+    """The wrapped policy (a network, a one-shot hull planner, the information-gain planner)
+    sees every view's points moved by Gaussian noise of ``sigma``.
 
     The noise of the episode's viewspace is drawn once, on the first call, for all its views;
     the episode's own record (coverage, VIG) still comes from the true model.
     """
 
-    inner: NetworkPolicy | HullSCOPolicy
+    inner: NetworkPolicy | HullSCOPolicy | InformationGainPolicy
     rng: np.random.Generator
     sigma: float
     _model: ModelData | None = None

@@ -179,6 +179,7 @@ IG = Method(
     "ig",
     "volumetric information gain on an occupancy map of the captured views, replanned every view",
     lambda ctx, rng: InformationGainPolicy(ctx.volumetric, ctx.intrinsics),
+    checks=("position_noise",),
     planner=True,
     style=("#e377c2", "-"),
 )
