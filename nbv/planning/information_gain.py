@@ -1,6 +1,6 @@
 """Volumetric information gain of candidate views on an occupancy map, by ray casting.
 
-Each candidate casts a grid of rays through its image (``rays`` columns and ``3/4`` as many rows,
+Each candidate casts a grid of rays through its image (``columns`` across and ``3/4`` as many rows,
 through the centres of equal image blocks) from its camera centre through the map. Along a ray
 the voxels are visited in order; ``p`` is a voxel's occupancy probability (0.5 unknown) and the
 *visibility* of a voxel is the product of ``1 - p`` over the voxels before it. The metrics, each
