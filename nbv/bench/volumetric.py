@@ -9,15 +9,18 @@ and :class:`nbv.policies.volumetric.InformationGainPolicy`.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from nbv.bench.timing import best_time
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.information_gain import candidate_rays, candidate_voxels, frontier, view_gains
+from nbv.planning.information_gain import (
+    candidate_segments,
+    candidate_voxels,
+    frontier,
+    view_gains,
+)
 from nbv.planning.occupancy import OccupancyMap, background_directions, log_odds_of
-from nbv.planning.raytrace import clip_to_box, drop_end_voxels
+from nbv.planning.raytrace import clip_to_box, drop_end_voxels, flat_index
 from nbv.planning.settings import VolumetricSettings
 
 
@@ -40,8 +43,7 @@ def numpy_traverse(
         t_max = np.where(d != 0, t_in[rays, None] + (cell + (d > 0) - p) / d, np.inf)
     active = np.arange(len(rays))
     for k in range(3 * n + 1):
-        c = cell[active]
-        out[rays[active], k] = (c[:, 0] * n + c[:, 1]) * n + c[:, 2]
+        out[rays[active], k] = flat_index(cell[active], n)
         tm = t_max[active]
         axis = np.argmin(tm, axis=1)
         keep = tm[np.arange(len(active)), axis] < t_out[rays[active]]
@@ -89,8 +91,7 @@ def numpy_ray_gains(
 
 def _plain_insert(occupancy: OccupancyMap, origin, hits, misses) -> None:
     s = occupancy.settings
-    reach = np.linalg.norm(origin) + 2.0 * math.sqrt(3.0) * s.bound
-    far = origin + misses * reach
+    far = occupancy.miss_ends(origin, misses)
     crossed = np.concatenate([
         numpy_traverse(np.broadcast_to(origin, hits.shape), hits, s.n, s.bound, False).ravel(),
         numpy_traverse(np.broadcast_to(origin, far.shape), far, s.n, s.bound).ravel(),
@@ -112,26 +113,24 @@ def plain_decision(views, poses, intrinsics: Intrinsics, settings: VolumetricSet
     for v, points in views:
         misses = background_directions(points, poses[v], intrinsics, settings.block)
         _plain_insert(occupancy, poses[v][:3, 3], points, misses)
-    rays = candidate_rays(intrinsics, settings.columns)
-    open_ = [v for v in range(len(poses)) if v not in dict(views)]
+    captured = {v for v, _ in views}
+    open_ = [v for v in range(len(poses)) if v not in captured]
     s = occupancy.settings
-    origins = np.repeat(poses[open_, :3, 3], len(rays), axis=0)
-    directions = np.einsum("cij,rj->cri", poses[open_, :3, :3], rays).reshape(-1, 3)
-    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    reach = np.linalg.norm(origins, axis=1, keepdims=True) + 2.0 * math.sqrt(3.0) * s.bound
-    voxels = numpy_traverse(origins, origins + directions * reach, s.n, s.bound)
+    origins, ends = candidate_segments(poses[open_], intrinsics, settings.columns, s)
+    voxels = numpy_traverse(origins, ends, s.n, s.bound)
     gains = numpy_ray_gains(occupancy.log_odds, voxels, settings.metric, frontier(occupancy))
     return open_[int(np.argmax(gains.reshape(len(open_), -1).sum(axis=1)))]
 
 
 def decision(views, poses, intrinsics: Intrinsics, settings: VolumetricSettings) -> int:
     """The same decision as :func:`plain_decision` through the project's code, as the policy
-    makes its first one (the candidates' voxels included)."""
+    makes its first one on a viewspace (the candidates' voxels traced too)."""
     occupancy = OccupancyMap(settings.occupancy())
     for v, points in views:
         misses = background_directions(points, poses[v], intrinsics, settings.block)
         occupancy.insert_view(poses[v][:3, 3], points, misses)
-    open_ = [v for v in range(len(poses)) if v not in dict(views)]
+    captured = {v for v, _ in views}
+    open_ = [v for v in range(len(poses)) if v not in captured]
     voxels = candidate_voxels(poses[open_], intrinsics, settings.columns, occupancy.settings)
     return open_[int(np.argmax(view_gains(occupancy, voxels, settings.metric)))]
 

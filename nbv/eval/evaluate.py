@@ -246,13 +246,13 @@ class ModelTask(NamedTuple):
 
 
 class ModelResult(NamedTuple):
-    """What a worker returns for one model: its records and what its ground truth is."""
+    """What a worker returns for one model: its records and its ground truth's hull."""
 
     dataset: str
     key: str
     records: list[EpisodeRecord]
     gt_hull_error: str
-    flat: bool
+    gt_hull_volume: float
 
 
 def run_model(task: ModelTask) -> ModelResult:
@@ -271,8 +271,7 @@ def run_model(task: ModelTask) -> ModelResult:
             run_record(model, job.viewspace, job.start, job.method, policy, task.dataset,
                        settings.n_views, job.check, job.repeat)
         )  # fmt: skip
-    flat = not model.gt_hull_error and not model.gt_hull_volume > 0
-    return ModelResult(task.dataset, task.key, records, model.gt_hull_error, flat)
+    return ModelResult(task.dataset, task.key, records, model.gt_hull_error, model.gt_hull_volume)
 
 
 def _worker_start(threads: int) -> None:
@@ -300,11 +299,10 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         log.warning("skipping %s: %s", method, reason)
     for info, ds in opened:
         exclude_selection(info, ds, networks)
-    workers = worker_count(settings)
-    if settings.threads or workers > 1:
+    if settings.threads:
         import torch
 
-        torch.set_num_threads(settings.threads or 1)
+        torch.set_num_threads(settings.threads)
     runnable = [m for m in settings.methods if m not in skipped]
     jobs = _jobs(settings, runnable)
     ident = identity(
@@ -333,7 +331,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     bar.update(sum(len(d) for d in done_before.values()))
     t0 = time.perf_counter()
     results: dict[tuple[str, str], ModelResult] = {}
-    with _pool(workers, settings.threads or 1, len(tasks)) as pool:
+    with _pool(worker_count(settings), settings.threads or 1, len(tasks)) as pool:
         for result in pool(run_model, tasks):
             episodes.append(result.dataset, result.key, result.records)
             results[(result.dataset, result.key)] = result
@@ -346,14 +344,14 @@ def evaluate(settings: EvalSettings) -> Evaluation:
             if (info.name, key) in done_before:
                 model = ds.model(key, viewspaces=())
                 records += done_before[(info.name, key)]
-                error, flat = model.gt_hull_error, not model.gt_hull_volume > 0
+                error, volume = model.gt_hull_error, model.gt_hull_volume
             else:
                 result = results[(info.name, key)]
                 records += result.records
-                error, flat = result.gt_hull_error, result.flat
+                error, volume = result.gt_hull_error, result.gt_hull_volume
             if error:
                 infos[info.name].qhull_failures.append((key, error))
-            elif flat:
+            elif not volume > 0:
                 infos[info.name].flat.append(key)
     resumed = sum(len(d) for d in done_before.values())
     return Evaluation(settings, records, skipped, [info for info, _ in opened], seconds, resumed)

@@ -130,15 +130,13 @@ def pixel_rays(intrinsics: Intrinsics) -> np.ndarray:
     Returns:
         (H, W, 3) float64; ``depth * ray`` is the camera-frame point of a pixel with planar depth.
     """
-    u = (np.arange(intrinsics.width) - intrinsics.cx) / intrinsics.fx
-    v = (np.arange(intrinsics.height) - intrinsics.cy) / intrinsics.fy
-    uu, vv = np.meshgrid(u, v)
-    return np.stack([uu, vv, np.ones_like(uu)], axis=-1)
+    uu, vv = np.meshgrid(np.arange(intrinsics.width), np.arange(intrinsics.height))
+    return rays_through(intrinsics, uu, vv)
 
 
 def rays_through(intrinsics: Intrinsics, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Camera-frame directions (unit z) through pixel coordinates ``u`` (columns) and ``v``
-    (rows), both (N,): ``(N, 3)`` float64, as :func:`pixel_rays` at those pixels."""
+    (rows) of one shape: float64 of that shape plus a last axis of 3."""
     u, v = np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
     return np.stack(
         [(u - intrinsics.cx) / intrinsics.fx, (v - intrinsics.cy) / intrinsics.fy, np.ones_like(u)],

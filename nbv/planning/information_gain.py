@@ -107,21 +107,31 @@ def frontier(occupancy: OccupancyMap) -> np.ndarray:
     return (near & (labels == UNKNOWN)).ravel()
 
 
-def candidate_voxels(
+def candidate_segments(
     poses: np.ndarray, intrinsics: Intrinsics, columns: int, settings: OccupancySettings
-) -> np.ndarray:
-    """The voxels of every candidate's rays (:func:`candidate_rays`), from its camera centre
-    through the map: ``(C, R, S)`` flat indices padded with -1. They depend on the poses and
-    the grid only, so a planner computes them once per viewspace."""
+) -> tuple[np.ndarray, np.ndarray]:
+    """Every candidate's rays (:func:`candidate_rays`) as segments from its camera centre to
+    beyond the map's far corner: ``(origins, ends)``, each ``(C R, 3)``, candidate after
+    candidate."""
     poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
     rays = candidate_rays(intrinsics, columns)
     reach = 2.0 * math.sqrt(3.0) * settings.bound
     origins = np.repeat(poses[:, :3, 3], len(rays), axis=0)
     directions = np.einsum("cij,rj->cri", poses[:, :3, :3], rays).reshape(-1, 3)
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    ends = origins + directions * (np.linalg.norm(origins, axis=1, keepdims=True) + reach)
+    return origins, origins + directions * (np.linalg.norm(origins, axis=1, keepdims=True) + reach)
+
+
+def candidate_voxels(
+    poses: np.ndarray, intrinsics: Intrinsics, columns: int, settings: OccupancySettings
+) -> np.ndarray:
+    """The voxels of every candidate's rays (:func:`candidate_segments`) through the map:
+    ``(C, R, S)`` flat indices padded with -1. They depend on the poses and the grid only, so
+    a planner computes them once per viewspace."""
+    poses = np.asarray(poses, dtype=np.float64).reshape(-1, 4, 4)
+    origins, ends = candidate_segments(poses, intrinsics, columns, settings)
     voxels = traverse(origins, ends, settings.n, settings.bound)
-    return voxels.reshape(len(poses), len(rays), -1)
+    return voxels.reshape(len(poses), -1, voxels.shape[1])
 
 
 def view_gains(

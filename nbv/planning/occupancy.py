@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics, project, rays_through
-from nbv.planning.raytrace import traverse
+from nbv.planning.raytrace import flat_index, traverse
 
 #: Voxel states of :meth:`OccupancyMap.labels` (OctoMap's getLabels values).
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
@@ -152,8 +152,14 @@ class OccupancyMap:
         ijk = np.floor((np.asarray(points, dtype=np.float64) + s.bound) / s.resolution)
         ijk = ijk.astype(np.int64)
         inside = ((ijk >= 0) & (ijk < s.n)).all(axis=1)
-        flat = (ijk[:, 0] * s.n + ijk[:, 1]) * s.n + ijk[:, 2]
-        return np.where(inside, flat, -1)
+        return np.where(inside, flat_index(ijk, s.n), -1)
+
+    def miss_ends(self, origin: np.ndarray, directions: np.ndarray) -> np.ndarray:
+        """(M, 3) ends of rays from ``origin`` (3,) along ``directions`` (M, 3) that hit
+        nothing: beyond the region's far corner, so that they carve it through."""
+        reach = np.linalg.norm(origin) + 2.0 * math.sqrt(3.0) * self.settings.bound
+        norms = np.linalg.norm(directions, axis=1, keepdims=True)
+        return origin + directions / np.where(norms > 0, norms, 1.0) * reach
 
     def insert_view(
         self, origin: np.ndarray, hits: np.ndarray, miss_directions: np.ndarray | None = None
@@ -164,10 +170,7 @@ class OccupancyMap:
         origin = np.asarray(origin, dtype=np.float64).reshape(3)
         hits = np.asarray(hits, dtype=np.float64).reshape(-1, 3)
         misses = np.zeros((0, 3)) if miss_directions is None else np.asarray(miss_directions, float)
-        # A miss ray ends beyond the region's far corner.
-        reach = np.linalg.norm(origin) + 2.0 * math.sqrt(3.0) * s.bound
-        norms = np.linalg.norm(misses, axis=1, keepdims=True)
-        far = origin + misses / np.where(norms > 0, norms, 1.0) * reach
+        far = self.miss_ends(origin, misses)
         before_hits = traverse(np.broadcast_to(origin, hits.shape), hits, s.n, s.bound, False)
         carved = traverse(np.broadcast_to(origin, far.shape), far, s.n, s.bound)
         # Each voxel once a view; a voxel both crossed and hit takes the hit (as OctoMap).

@@ -12,6 +12,11 @@ import numba
 import numpy as np
 
 
+def flat_index(ijk: np.ndarray, n: int) -> np.ndarray:
+    """Flat voxel indices ``(i n + j) n + k`` of ``(..., 3)`` integer voxel coordinates."""
+    return (ijk[..., 0] * n + ijk[..., 1]) * n + ijk[..., 2]
+
+
 def clip_to_box(origins: np.ndarray, deltas: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
     """Segment parameters ``(t_in, t_out)`` (each ``(R,)``, 0 at the origin, 1 at the end) of
     the part of each segment inside the box ``[0, n]^3`` of grid coordinates; ``t_in >= t_out``
@@ -20,12 +25,10 @@ def clip_to_box(origins: np.ndarray, deltas: np.ndarray, n: int) -> tuple[np.nda
         inv = 1.0 / deltas
         ta = (0.0 - origins) * inv
         tb = (n - origins) * inv
-    lo = np.where(
-        deltas == 0, np.where((origins >= 0) & (origins <= n), -np.inf, np.inf), np.minimum(ta, tb)
-    )
-    hi = np.where(
-        deltas == 0, np.where((origins >= 0) & (origins <= n), np.inf, -np.inf), np.maximum(ta, tb)
-    )
+    # A coordinate that does not change keeps the segment in the slab for all t, or never.
+    inside = (origins >= 0) & (origins <= n)
+    lo = np.where(deltas == 0, np.where(inside, -np.inf, np.inf), np.minimum(ta, tb))
+    hi = np.where(deltas == 0, np.where(inside, np.inf, -np.inf), np.maximum(ta, tb))
     return np.maximum(lo.max(axis=1), 0.0), np.minimum(hi.min(axis=1), 1.0)
 
 
@@ -122,8 +125,7 @@ def drop_end_voxels(
         n: voxels along each axis.
     """
     rows = np.flatnonzero((t_out >= 1.0) & (counts > 0))
-    end_cell = np.clip(np.floor(ends[rows]), 0, n - 1).astype(np.int64)
-    end_flat = (end_cell[:, 0] * n + end_cell[:, 1]) * n + end_cell[:, 2]
+    end_flat = flat_index(np.clip(np.floor(ends[rows]), 0, n - 1).astype(np.int64), n)
     last = counts[rows] - 1
     hit = out[rows, last] == end_flat
     out[rows[hit], last[hit]] = -1

@@ -39,6 +39,8 @@ class MethodContext:
             simulation, and of the analytic one's dilation).
         n_views: views per episode, start view included.
         volumetric: the information-gain planner's settings.
+        traced: the information-gain planner's candidate voxels, shared by the episodes (they
+            depend on the viewspace and the settings only).
     """
 
     networks: Mapping[str, NetworkPolicy]
@@ -47,6 +49,7 @@ class MethodContext:
     eps: float
     n_views: int
     volumetric: VolumetricSettings = field(default_factory=VolumetricSettings)
+    traced: dict = field(default_factory=dict, compare=False, repr=False)
 
 
 Policy = Callable[[Any], "int | list[int]"]
@@ -178,7 +181,7 @@ HULL_SCO_REPLAN = Method(
 IG = Method(
     "ig",
     "volumetric information gain on an occupancy map of the captured views, replanned every view",
-    lambda ctx, rng: InformationGainPolicy(ctx.volumetric, ctx.intrinsics),
+    lambda ctx, rng: InformationGainPolicy(ctx.volumetric, ctx.intrinsics, traced=ctx.traced),
     checks=("position_noise",),
     planner=True,
     style=("#e377c2", "-"),
@@ -187,7 +190,8 @@ HULL_IG = Method(
     "hull_ig",
     "hull_sco's covering picks (its fill left out), then ig on the occupancy map",
     lambda ctx, rng: HullThenGainPolicy(
-        _hull_policy(ctx, rng), InformationGainPolicy(ctx.volumetric, ctx.intrinsics)
+        _hull_policy(ctx, rng),
+        InformationGainPolicy(ctx.volumetric, ctx.intrinsics, traced=ctx.traced),
     ),
     planner=True,
     style=("#8c564b", "-"),

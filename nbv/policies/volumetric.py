@@ -36,8 +36,9 @@ class InformationGainPolicy:
     counts: dict[str, int] = field(default_factory=lambda: {"planned": 0, "zero_gain": 0})
     occupancy: OccupancyMap | None = None
     integrated: list[int] = field(default_factory=list)
-    # (V, R, S) voxels of every candidate's rays: fixed by the viewspace and the grid
-    candidates: np.ndarray | None = None
+    #: Candidate voxels already traced, by viewspace poses and settings: they depend on nothing
+    #: else, so the episodes of a run share them (pass the run's dict).
+    traced: dict = field(default_factory=dict)
 
     def update(self, state: EpisodeState) -> None:
         """Insert the captured views not in the map yet."""
@@ -54,18 +55,24 @@ class InformationGainPolicy:
             self.occupancy.insert_view(view.poses[v][:3, 3], points, misses)
             self.integrated.append(v)
 
+    def candidate_voxels(self, poses: np.ndarray) -> np.ndarray:
+        """(V, R, S) voxels of the rays of every view of ``poses`` (traced once per poses)."""
+        key = (np.asarray(poses).tobytes(), self.intrinsics, self.settings.columns,
+               self.settings.occupancy())  # fmt: skip
+        if key not in self.traced:
+            self.traced[key] = candidate_voxels(
+                poses, self.intrinsics, self.settings.columns, self.settings.occupancy()
+            )
+        return self.traced[key]
+
     def __call__(self, state: EpisodeState) -> int:
         t0 = time.perf_counter()
         self.update(state)
         t1 = time.perf_counter()
-        if self.candidates is None:
-            poses = state.model.views[state.viewspace].poses
-            self.candidates = candidate_voxels(
-                poses, self.intrinsics, self.settings.columns, self.occupancy.settings
-            )
-        gains = np.zeros(len(self.candidates))
+        candidates = self.candidate_voxels(state.model.views[state.viewspace].poses)
+        gains = np.zeros(len(candidates))
         open_ = np.flatnonzero(~state.view_state)
-        gains[open_] = view_gains(self.occupancy, self.candidates[open_], self.settings.metric)
+        gains[open_] = view_gains(self.occupancy, candidates[open_], self.settings.metric)
         score = gains
         if self.settings.spread_weight > 0 and gains.max() > 0:
             positions = state.model.views[state.viewspace].poses[:, :3, 3]
