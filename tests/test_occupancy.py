@@ -131,6 +131,13 @@ def test_compiled_ray_gains_equal_plain_numpy(metric):
     assert got.max() > 0
     with pytest.raises(ValueError, match="metric='volume': must be one of unobserved"):
         ray_gains(occupancy, voxels, "volume")
+    if metric in ("unobserved", "frontier"):
+        capped = ray_gains(occupancy, voxels, metric, depth=2)
+        np.testing.assert_array_equal(capped, np.minimum(reference, 2))
+        np.testing.assert_array_equal(
+            capped, numpy_ray_gains(occupancy.log_odds, voxels, metric, frontier(occupancy), 2)
+        )
+        assert reference.max() > 2  # the cap binds on some rays
 
 
 def test_background_blocks_are_those_no_point_falls_in():

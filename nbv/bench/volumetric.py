@@ -60,20 +60,25 @@ def numpy_traverse(
 
 
 def numpy_ray_gains(
-    log_odds: np.ndarray, voxels: np.ndarray, metric: str, frontier_mask: np.ndarray | None = None
+    log_odds: np.ndarray,
+    voxels: np.ndarray,
+    metric: str,
+    frontier_mask: np.ndarray | None = None,
+    depth: int = 0,
 ) -> np.ndarray:
     """:func:`nbv.planning.information_gain.ray_gains` on whole arrays: (R,) gains
-    (``frontier_mask``: the (n^3,) bool frontier the ``frontier`` metric counts)."""
+    (``frontier_mask``: the (n^3,) bool frontier the ``frontier`` metric counts; ``depth``: the
+    cap of a ray's count, 0 for none)."""
     valid = voxels >= 0
     index = np.where(valid, voxels, 0)
     value = log_odds[index]
     unknown = np.isnan(value) & valid
     occupied = (value >= 0) & valid
     before = valid & ~(np.cumsum(occupied, axis=1) > 0)
-    if metric == "unobserved":
-        return (unknown & before).sum(axis=1).astype(float)
-    if metric == "frontier":
-        return (unknown & before & frontier_mask[index]).sum(axis=1).astype(float)
+    if metric in ("unobserved", "frontier"):
+        counted = unknown & before & (frontier_mask[index] if metric == "frontier" else True)
+        count = counted.sum(axis=1).astype(float)
+        return np.minimum(count, depth) if depth > 0 else count
     p = np.where(valid, 1 / (1 + np.exp(-np.nan_to_num(value, nan=0.0))), 0.0)
     q = np.clip(p, 1e-12, 1 - 1e-12)
     h = -(q * np.log2(q) + (1 - q) * np.log2(1 - q))

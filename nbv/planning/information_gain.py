@@ -47,9 +47,10 @@ def candidate_rays(intrinsics: Intrinsics, columns: int) -> np.ndarray:
 
 
 @numba.njit(cache=True, nogil=True)
-def _ray_gains(voxels, log_odds, weights, metric):  # pragma: no cover - compiled
+def _ray_gains(voxels, log_odds, weights, metric, depth):  # pragma: no cover - compiled
     """Per-ray gains of kernel branch ``metric`` (see :func:`ray_gains`), one pass along each
-    row; branch 0 sums ``weights`` of the unknown voxels before the first occupied one."""
+    row; branch 0 sums ``weights`` of the unknown voxels before the first occupied one, at most
+    ``depth`` of them (0: all)."""
     out = np.zeros(len(voxels))
     for r in range(len(voxels)):
         visibility, unknown_before, entropy_before, entropy_all = 1.0, 0.0, 0.0, 0.0
@@ -77,7 +78,7 @@ def _ray_gains(voxels, log_odds, weights, metric):  # pragma: no cover - compile
                 entropy_before += visibility * h
             visibility *= 1.0 - p
         if metric == 0:
-            out[r] = unknown_before
+            out[r] = min(unknown_before, depth) if depth > 0 else unknown_before
         elif metric == 1:
             out[r] = entropy_all
         elif metric == 2:
@@ -87,16 +88,20 @@ def _ray_gains(voxels, log_odds, weights, metric):  # pragma: no cover - compile
     return out
 
 
-def ray_gains(occupancy: OccupancyMap, voxels: np.ndarray, metric: str) -> np.ndarray:
+def ray_gains(
+    occupancy: OccupancyMap, voxels: np.ndarray, metric: str, depth: int = 0
+) -> np.ndarray:
     """The gain of each ray from its voxels: ``(R, S)`` flat indices padded with -1 in, ``(R,)``
-    float out (see the module docstring for ``metric``)."""
+    float out (see the module docstring for ``metric``; ``depth`` caps the ``unobserved`` and
+    ``frontier`` count of a ray, 0 for no cap)."""
     if metric not in METRICS:
         raise ValueError(f"metric={metric!r}: must be one of {', '.join(METRICS)}")
     if metric == "frontier":
         weights = frontier(occupancy).astype(np.float64)
     else:
         weights = np.ones(len(occupancy.log_odds))
-    return _ray_gains(np.ascontiguousarray(voxels), occupancy.log_odds, weights, _KERNEL[metric])
+    voxels = np.ascontiguousarray(voxels)
+    return _ray_gains(voxels, occupancy.log_odds, weights, _KERNEL[metric], depth)
 
 
 def frontier(occupancy: OccupancyMap) -> np.ndarray:
@@ -135,7 +140,7 @@ def candidate_voxels(
 
 
 def view_gains(
-    occupancy: OccupancyMap, voxels: np.ndarray, metric: str = "unobserved"
+    occupancy: OccupancyMap, voxels: np.ndarray, metric: str = "unobserved", depth: int = 0
 ) -> np.ndarray:
     """Information gain of each candidate view on the map: the sum of its rays' gains
     (:func:`ray_gains`).
@@ -144,9 +149,12 @@ def view_gains(
         occupancy: the map of the captured views.
         voxels: (C, R, S) from :func:`candidate_voxels` on the map's settings.
         metric: one of :data:`METRICS`.
+        depth: the ``unobserved`` and ``frontier`` counts of a ray stop at this many voxels
+            (0: no cap).
 
     Returns:
         (C,) float64 gains.
     """
     c, r, s = voxels.shape
-    return ray_gains(occupancy, voxels.reshape(c * r, s), metric).reshape(c, r).sum(axis=1)
+    gains = ray_gains(occupancy, voxels.reshape(c * r, s), metric, depth)
+    return gains.reshape(c, r).sum(axis=1)

@@ -61,6 +61,9 @@ class VolumetricSettings:
         columns: rays across a candidate's image (rows in proportion: 16 gives 16 x 12).
         metric: ``unobserved``, ``entropy``, ``rear_side_voxel`` or ``rear_side_entropy``
             (:mod:`nbv.planning.information_gain`).
+        depth: a ray's ``unobserved`` or ``frontier`` count stops at this many voxels, 0 for
+            no cap: the count then weighs the unknown volume behind the surface a ray would
+            meet, a cap weighs the surface.
         block: a captured view's rays that hit nothing are found in blocks of this many pixels
             (:func:`nbv.planning.occupancy.background_directions`).
         spread_weight: adds this times a candidate's smallest angle to the visited views (in
@@ -72,6 +75,7 @@ class VolumetricSettings:
     bound: float = 0.56
     columns: int = 16
     metric: str = "unobserved"
+    depth: int = 0
     block: int = 16
     spread_weight: float = 0.0
 
@@ -79,6 +83,7 @@ class VolumetricSettings:
         checks = [
             ("columns", self.columns >= 1, "an integer >= 1"),
             ("metric", self.metric in METRICS, f"one of {', '.join(METRICS)}"),
+            ("depth", self.depth >= 0, "an integer >= 0 (voxels; 0: no cap)"),
             ("block", self.block >= 1, "an integer >= 1 (pixels)"),
             ("spread_weight", self.spread_weight >= 0, ">= 0"),
         ]

@@ -72,7 +72,9 @@ class InformationGainPolicy:
         candidates = self.candidate_voxels(state.model.views[state.viewspace].poses)
         gains = np.zeros(len(candidates))
         open_ = np.flatnonzero(~state.view_state)
-        gains[open_] = view_gains(self.occupancy, candidates[open_], self.settings.metric)
+        gains[open_] = view_gains(
+            self.occupancy, candidates[open_], self.settings.metric, self.settings.depth
+        )
         score = gains
         if self.settings.spread_weight > 0 and gains.max() > 0:
             positions = state.model.views[state.viewspace].poses[:, :3, 3]
