@@ -27,6 +27,7 @@ from nbv.dataset.reader import SHARD_GLOB
 from nbv.geometry.viewspace import get_viewspace
 from nbv.models.config import PRECISIONS, PCNBVConfig
 from nbv.policies.episode import DEFAULT_START_VIEWS
+from train.losses import LOSSES
 
 SCORES = ("coverage", "vig")
 INPUTS = ("points", "signature")
@@ -83,6 +84,8 @@ class TrainSettings:
     select: str = "valid"
     resume: bool = True
     random_repeats: int = 10
+    loss: str = "squared"
+    augment: bool = True
     categories: tuple[str, ...] = TRAIN_CATEGORIES
 
     def __post_init__(self) -> None:
@@ -101,6 +104,7 @@ class TrainSettings:
             ("precision", self.precision in PRECISIONS, f"one of {', '.join(PRECISIONS)}"),
             ("select", self.select in SELECTIONS, f"one of {', '.join(SELECTIONS)}"),
             ("random_repeats", self.random_repeats >= 1, "an integer >= 1"),
+            ("loss", self.loss in LOSSES, f"one of {', '.join(LOSSES)}"),
         ]
         for key, ok, allowed in checks:
             if not ok:
@@ -160,6 +164,8 @@ class TrainConfig:
     select: str = MISSING
     resume: bool = MISSING
     random_repeats: int = MISSING
+    loss: str = MISSING
+    augment: bool = MISSING
     out_dir: str = MISSING
     score: ScoreConfig = field(default_factory=ScoreConfig)
     model: ModelConfig = field(default_factory=ModelConfig)

@@ -1,9 +1,12 @@
 """One training run: leave-one-category-out, checkpoints, metrics, resumption.
 
 Per epoch: a seeded shuffle of the training samples, batches of ``batch_size``, each cloud a seeded
-random subset of ``train_points`` of its stored points (the signature is used whole), loss = sum
-of squared errors over the V outputs (mean over the batch) + ``l2`` times the squared weights.
-Then the validation loss, Spearman correlation and best-view hits on the samples of the *valid*
+random subset of ``train_points`` of its stored points (the signature is used whole), each
+sample mapped by a random symmetry of its viewspace (``augment``, :mod:`train.augment`), loss =
+``loss`` (:mod:`train.losses`; the paper's sum of squared errors over the V outputs by default,
+mean over the batch) + ``l2`` times the squared weights. Then Spearman correlation and best-view
+hits on a fixed 300 of the training samples (unaugmented), and the validation loss, Spearman
+correlation and best-view hits on the samples of the *valid*
 split of the fold's training categories, and every ``eval_every`` epochs (and at the last) the
 reconstruction metric there: coverage by view and AUC of the network's episodes from
 ``start_views`` on those models. The held-out category takes no part in training or in choosing
@@ -42,8 +45,10 @@ from nbv.models.precision import autocast, flush_denormals, resolve_precision
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
 from nbv.utils.atomic import atomic_path, write_text
+from train.augment import Augmentation
 from train.config import TrainSettings
 from train.heldout import HELDOUT_FILE, score_heldout
+from train.losses import batch_loss
 from train.metrics import best_view_hits, spearman
 from train.resume import check_resumable, clear_run, file_digest, run_identity
 
@@ -99,12 +104,18 @@ def fold_keys(dataset, settings: TrainSettings) -> tuple[list[str], list[str]]:
 
 
 def batch_inputs(
-    samples: SampleSet, index: np.ndarray, settings: TrainSettings, rng: np.random.Generator | None
+    samples: SampleSet,
+    index: np.ndarray,
+    settings: TrainSettings,
+    rng: np.random.Generator | None,
+    augmentation: Augmentation | None = None,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """(points (B, N, 3), view_state (B, V) float, target (B, V)) tensors of some samples.
 
     Clouds are reduced to ``train_points`` by a random subset per sample (``rng``), or to their
-    first ``train_points`` farthest-point-sampled points when ``rng`` is None (validation).
+    first ``train_points`` farthest-point-sampled points when ``rng`` is None (validation). With
+    an ``augmentation`` (and ``rng``) each sample is then mapped by a random symmetry of the
+    viewspace.
     """
     if settings.input == "signature":
         points = samples.signature[index]
@@ -116,34 +127,52 @@ def batch_inputs(
         else:
             pick = np.argsort(rng.random(points.shape[:2]), axis=1)[:, :n]
             points = np.take_along_axis(points, pick[..., None], axis=1)
+    view_state, target = samples.view_state[index], samples.target[index]
+    if augmentation is not None and rng is not None:
+        points, view_state, target = augmentation.apply(
+            points, view_state, target, rng, signature=settings.input == "signature"
+        )
     return (
         torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32)),
-        torch.from_numpy(samples.view_state[index].astype(np.float32)),
-        torch.from_numpy(samples.target[index].astype(np.float32)),
+        torch.from_numpy(view_state.astype(np.float32)),
+        torch.from_numpy(target.astype(np.float32)),
     )
 
 
-def loss_fn(model: PCNBV, pred: torch.Tensor, target: torch.Tensor, l2: float) -> torch.Tensor:
-    """Sum of squared errors over the views (mean over the batch) plus ``l2`` * |weights|^2."""
+def loss_fn(
+    model: PCNBV,
+    pred: torch.Tensor,
+    target: torch.Tensor,
+    view_state: torch.Tensor,
+    settings: TrainSettings,
+) -> torch.Tensor:
+    """``settings.loss`` of the batch (:mod:`train.losses`) plus ``l2`` * |weights|^2."""
     penalty = sum((p**2).sum() for n, p in model.named_parameters() if p.ndim > 1)
-    return ((pred - target) ** 2).sum(dim=1).mean() + l2 * penalty
+    return batch_loss(settings.loss, pred, target, view_state) + settings.l2 * penalty
 
 
 def predict(
     model: PCNBV, samples: SampleSet, settings: TrainSettings, device: torch.device
 ) -> tuple[np.ndarray, float]:
-    """Predicted gains of every sample (S, V) and the mean loss, in eval mode."""
+    """Predicted gains of every sample (S, V) and the mean ``settings.loss`` (no penalty), in
+    eval mode."""
     model.eval()
-    preds, losses = [], []
+    preds = []
     with torch.no_grad():
         for start in range(0, len(samples), settings.batch_size):
             index = np.arange(start, min(start + settings.batch_size, len(samples)))
-            x, s, t = (a.to(device) for a in batch_inputs(samples, index, settings, None))
+            x, s, _ = (a.to(device) for a in batch_inputs(samples, index, settings, None))
             with autocast(settings.precision, device):
                 pred = model(x, s)
-            losses.append(float(((pred - t) ** 2).sum(dim=1).sum()))
-            preds.append(pred.cpu().numpy())
-    return np.concatenate(preds), sum(losses) / len(samples)
+            preds.append(pred.float().cpu().numpy())
+    pred = np.concatenate(preds)
+    loss = batch_loss(
+        settings.loss,
+        torch.from_numpy(pred),
+        torch.from_numpy(samples.target.astype(np.float32)),
+        torch.from_numpy(samples.view_state.astype(np.float32)),
+    )
+    return pred, float(loss)
 
 
 def episodes_metric(dataset, keys: list[str], policy, start_views) -> np.ndarray:
@@ -178,6 +207,16 @@ def _resume(out_dir: Path, identity: dict, model, optimizer, scheduler) -> tuple
     optimizer.load_state_dict(opt)
     scheduler.load_state_dict(extra["scheduler"])
     return int(extra["epoch"]) + 1, float(extra.get("best_auc", -np.inf))
+
+
+def _augmentation(settings: TrainSettings, dataset, samples: SampleSet, lmax: int):
+    """The samples' viewspace symmetries when ``augment`` is on and it has any, else None."""
+    if not settings.augment:
+        return None
+    name = str(samples.attrs.get("viewspace", "original"))
+    augmentation = Augmentation(dataset.viewspaces[name], lmax)
+    log.info("augmentation: %d symmetries of the %s viewspace", len(augmentation), name)
+    return augmentation if len(augmentation) > 1 else None
 
 
 def _plain_settings(settings: TrainSettings) -> dict:
@@ -251,6 +290,11 @@ def _train(settings: TrainSettings) -> dict:
     )
     n_views = samples.view_state.shape[1]
     lmax = int(samples.attrs.get("lmax", 3))
+    augmentation = _augmentation(settings, dataset, samples, lmax)
+    # A fixed subset of the training samples, unaugmented, shows whether the ranking is learnt
+    # on the data it is trained on.
+    probe_rows = np.random.default_rng(settings.seed).permutation(len(train))[:300]
+    probe = train.select(np.sort(probe_rows))
 
     torch.manual_seed(settings.seed)
     config = PCNBVConfig(n_views=n_views, **settings.net)
@@ -305,12 +349,14 @@ def _train(settings: TrainSettings) -> dict:
         )
         for index in bar:
             t0 = time.perf_counter()
-            x, s, t = (a.to(device) for a in batch_inputs(train, index, settings, rng))
+            x, s, t = (
+                a.to(device) for a in batch_inputs(train, index, settings, rng, augmentation)
+            )
             t1 = time.perf_counter()
             optimizer.zero_grad()
             with autocast(settings.precision, device):
                 pred = model(x, s)
-            loss = loss_fn(model, pred, t, settings.l2)
+            loss = loss_fn(model, pred, t, s, settings)
             loss.backward()
             optimizer.step()
             t2 = time.perf_counter()
@@ -335,6 +381,11 @@ def _train(settings: TrainSettings) -> dict:
                 val_spearman=spearman(pred, val.target, val.view_state),
                 val_best_view_hits=best_view_hits(pred, val.target, val.view_state),
             )
+        pred, _ = predict(model, probe, settings, device)
+        row.update(
+            train_spearman=spearman(pred, probe.target, probe.view_state),
+            train_best_view_hits=best_view_hits(pred, probe.target, probe.view_state),
+        )
         last_epoch = epoch + 1 == settings.epochs
         if selection_keys and ((epoch + 1) % settings.eval_every == 0 or last_epoch):
             policy = _network_policy(model, settings, lmax)
