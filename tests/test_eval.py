@@ -45,6 +45,7 @@ def tiny(tmp_path_factory) -> dict[str, Path]:
         "data": make_tiny_dataset(tmp / "data"),
         "pcnbv": save_tiny_checkpoint(tmp / "pcnbv.pt", "points"),
         "pcnbv_sph": save_tiny_checkpoint(tmp / "pcnbv_sph.pt", "signature"),
+        "vcnbv": save_tiny_checkpoint(tmp / "vcnbv.pt", "directions"),
     }
 
 
@@ -54,7 +55,7 @@ def tiny_settings(tiny: dict[str, Path], out: Path, **kw) -> EvalSettings:
         data_dir=tiny["data"],
         start_views=STARTS,
         disturb_start_views=(24,),
-        checkpoints={"pcnbv": str(tiny["pcnbv"]), "pcnbv_sph": str(tiny["pcnbv_sph"])},
+        checkpoints={name: str(tiny[name]) for name in ("pcnbv", "pcnbv_sph", "vcnbv")},
         hull=PlannerSettings(n_samp=2048),
         progress=False,
     )
@@ -80,11 +81,11 @@ def test_full_run_writes_every_output(full_run):
     data = json.loads((full_run / "results.json").read_text())
     episodes = data["episodes"]
     plain = [e for e in episodes if e["check"] is None]
-    # 2 models x 2 viewspaces x 11 methods (random with 10 seeds) x 2 starts, then the checks on
+    # 2 models x 2 viewspaces x 12 methods (random with 10 seeds) x 2 starts, then the checks on
     # 1 start of original: 2 networks x 2 checks + the random hull + 3 noise levels x (2
     # networks + 2 one-shot planners + ig) = 20 x 2 models x 1 start.
-    assert len(METHODS_BY_NAME) == 11
-    assert len(plain) == 2 * 2 * (10 + 10) * 2
+    assert len(METHODS_BY_NAME) == 12
+    assert len(plain) == 2 * 2 * (10 + 11) * 2
     assert sorted(e["repeat"] for e in plain if e["method"] == "random")[-1] == 9
     assert len(episodes) - len(plain) == 20 * 2
     assert data["skipped"] == {}
@@ -102,7 +103,7 @@ def test_full_run_writes_every_output(full_run):
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 2 * 11 + 20  # (viewspace, method) pairs, then the checks
+    assert len(rows) == 2 * 12 + 20  # (viewspace, method) pairs, then the checks
     by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
     random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
     assert float(by[("original", "random", "")]["auc"]) == pytest.approx(

@@ -18,6 +18,7 @@ from nbv.planning.planner import plan as sco_plan
 from nbv.planning.planner import plan_sph
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
+from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
@@ -55,14 +56,21 @@ def save_tiny_checkpoint(
     path: Path, input: str = "points", seed: int = 0, selection_keys: list[str] | None = None
 ) -> Path:
     """An untrained tiny PCNBV saved the way training saves one (``extra``: input, lmax,
-    eval_points, and the models that chose it)."""
+    eval_points, and the models that chose it); ``input="directions"``: a tiny
+    viewspace-conditioned network the way train.conditioned saves one."""
     import torch
 
     from nbv.models.checkpoints import save_checkpoint
+    from nbv.models.conditioned import ConditionedConfig, ViewConditionedNet, save_conditioned
     from nbv.models.config import PCNBVConfig
     from nbv.models.pcnbv import PCNBV
 
     torch.manual_seed(seed)
+    if input == "directions":
+        config = ConditionedConfig((8, 16), (8,), 4, (16,))
+        extra = {"eval_points": 64, "selection_keys": selection_keys or []}
+        save_conditioned(path, ViewConditionedNet(config).eval(), extra)
+        return path
     net = PCNBV(PCNBVConfig(n_views=33, **TINY_NET)).eval()
     extra = {"input": input, "lmax": 2, "eval_points": 64, "selection_keys": selection_keys or []}
     save_checkpoint(path, net, extra)
@@ -82,10 +90,12 @@ def model(dataset):
 @pytest.fixture(scope="module")
 def networks(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("nets")
-    return {
+    nets = {
         name: NetworkPolicy.from_checkpoint(save_tiny_checkpoint(tmp / f"{name}.pt", name), 33)
         for name in ("points", "signature")
     }
+    path = save_tiny_checkpoint(tmp / "directions.pt", "directions")
+    return {**nets, "directions": ConditionedPolicy.from_checkpoint(path)}
 
 
 #: The information-gain planner on the small camera: coarse voxels, 4-pixel background blocks.
@@ -102,6 +112,7 @@ def all_policies(networks, seed: int = 0) -> dict:
         "oracle": OraclePolicy(),
         "pcnbv": networks["points"].fresh(),
         "pcnbv_sph": networks["signature"].fresh(),
+        "vcnbv": networks["directions"].fresh(),
         "hull_sco": HullSCOPolicy(rng(seed), **hull),
         "hull_sco_sph": HullSCOPolicy(
             rng(seed),
@@ -327,7 +338,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
     # it has not captured would pick otherwise on the blinded model.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 10
+    assert len(names) == 11
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])

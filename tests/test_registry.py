@@ -7,6 +7,7 @@ from datagen import SMALL_CAMERA
 
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
+from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.network import NetworkPolicy
@@ -24,7 +25,10 @@ from nbv.policies.volumetric import InformationGainPolicy
 
 def _context(planner: PlannerSettings | None = None) -> MethodContext:
     networks = {
-        name: NetworkPolicy(model=object(), input=kind) for name, kind in NETWORK_INPUTS.items()
+        name: ConditionedPolicy(model=object())
+        if kind == "directions"
+        else NetworkPolicy(model=object(), input=kind)
+        for name, kind in NETWORK_INPUTS.items()
     }
     return MethodContext(networks, planner or PlannerSettings(), SMALL_CAMERA, 0.02, 7)
 
@@ -41,6 +45,7 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
     assert kinds["random"] is RandomPolicy and kinds["oracle"] is OraclePolicy
     assert kinds["spread"] is SpreadPolicy
     assert kinds["pcnbv"] is NetworkPolicy and kinds["pcnbv_sph"] is NetworkPolicy
+    assert kinds["vcnbv"] is ConditionedPolicy
     assert kinds["hull_sco_replan"] is HullSCOReplanPolicy
     for name in ("hull_sco", "hull_sco_sph", "hull_sco_probes"):
         assert kinds[name] is HullSCOPolicy
@@ -59,11 +64,11 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
 
 def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
-        "random", "spread", "oracle", "pcnbv", "pcnbv_sph",
+        "random", "spread", "oracle", "pcnbv", "pcnbv_sph", "vcnbv",
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig",
         "hull_ig",
     ]  # fmt: skip
-    assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature"}
+    assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "vcnbv": "directions"}
     assert PLANNERS == (
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig", "hull_ig",
     )  # fmt: skip

@@ -75,6 +75,7 @@ class EvalSettings:
         default_factory=lambda: {
             "pcnbv": "outputs/train/pcnbv_coverage_fold0/best.pt",
             "pcnbv_sph": "outputs/train/pcnbv_sph_coverage_fold0/best.pt",
+            "vcnbv": "outputs/train/vcnbv/best.pt",
         }
     )
     hull: PlannerSettings = field(default_factory=PlannerSettings)

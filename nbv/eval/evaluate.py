@@ -27,6 +27,7 @@ from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
+from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext, check_methods
 
@@ -186,7 +187,10 @@ def load_networks(
             continue
         path = settings.checkpoints[method]
         try:
-            policy = NetworkPolicy.from_checkpoint(path, n_views=n_views)
+            if needed == "directions":
+                policy = ConditionedPolicy.from_checkpoint(path)
+            else:
+                policy = NetworkPolicy.from_checkpoint(path, n_views=n_views)
         except CheckpointError as err:
             skipped[method] = str(err)
             continue

@@ -25,7 +25,7 @@ class CheckpointError(ValueError):
     """A checkpoint file is missing, unreadable, or does not fit the network it should hold."""
 
 
-def _check_plain(value: Any, where: str) -> None:
+def check_plain(value: Any, where: str) -> None:
     """Raise ``TypeError`` unless ``value`` is built of types that ``torch.load`` with
     ``weights_only=True`` reads back: dict with str keys, list, tuple, str, int, float, bool,
     None, tensors."""
@@ -33,10 +33,10 @@ def _check_plain(value: Any, where: str) -> None:
         for key, item in value.items():
             if not isinstance(key, str):
                 raise TypeError(f"checkpoint extra{where}: keys must be str, got {key!r}")
-            _check_plain(item, f"{where}[{key!r}]")
+            check_plain(item, f"{where}[{key!r}]")
     elif isinstance(value, list | tuple):
         for i, item in enumerate(value):
-            _check_plain(item, f"{where}[{i}]")
+            check_plain(item, f"{where}[{i}]")
     elif not (value is None or isinstance(value, str | int | float | bool | Tensor)):
         raise TypeError(
             f"checkpoint extra{where} is a {type(value).__name__}; allowed: dict, list, tuple, "
@@ -52,7 +52,7 @@ def save_checkpoint(path: str | os.PathLike[str], model: PCNBV, extra: Mapping[s
     Raises:
         TypeError: ``extra`` holds a value :func:`load_checkpoint` could not read back safely.
     """
-    _check_plain(dict(extra), "")
+    check_plain(dict(extra), "")
     payload = {
         "format": CHECKPOINT_FORMAT,
         "version": CHECKPOINT_VERSION,

@@ -64,8 +64,9 @@ class Method:
         summary: one line for the report and ``--help``-like listings.
         build: ``(context, rng) -> policy`` for one episode (the policy's ``timings`` start
             empty).
-        network_input: ``points`` or ``signature`` when the method runs a trained checkpoint
-            of that input (it needs ``checkpoints.<name>``); None otherwise.
+        network_input: ``points`` or ``signature`` when the method runs a trained PCNBV
+            checkpoint of that input, ``directions`` for the viewspace-conditioned network (it
+            needs ``checkpoints.<name>``); None otherwise.
         ground_truth: the method reads the ground truth (an upper reference, not a method a
             robot could run).
         checks: the disturbance checks that apply to it.
@@ -146,6 +147,14 @@ PCNBV_SPH = Method(
     style=("#17becf", "-"),
     paper_times={"signature": 2.53, "network": 0.02, "total": 2.55, "online": 2.55},
 )
+VCNBV = Method(
+    "vcnbv",
+    "the viewspace-conditioned network: scores each candidate from its direction (a checkpoint "
+    "of train.conditioned)",
+    lambda ctx, rng: ctx.networks["vcnbv"].fresh(),
+    network_input="directions",
+    style=("#393b79", "-"),
+)
 HULL_SCO = Method(
     "hull_sco",
     "convex-hull set cover, one-shot from the start view's cloud",
@@ -206,6 +215,7 @@ METHODS: dict[str, Method] = {
         ORACLE,
         PCNBV,
         PCNBV_SPH,
+        VCNBV,
         HULL_SCO,
         HULL_SCO_SPH,
         HULL_SCO_PROBES,

@@ -1,0 +1,122 @@
+"""The viewspace-conditioned network: equivariance to the candidates' order, its checkpoints, its
+training samples, and a real (tiny) training run whose checkpoint plays both viewspaces."""
+
+import numpy as np
+import pytest
+import torch
+from datagen import make_train_dataset
+from test_policies import save_tiny_checkpoint
+
+import nbv.dataset
+from nbv.geometry.scores import coverage_gains
+from nbv.models.checkpoints import CheckpointError
+from nbv.models.conditioned import (
+    ConditionedConfig,
+    ViewConditionedNet,
+    load_conditioned,
+    save_conditioned,
+)
+from nbv.policies.conditioned import ConditionedPolicy
+from nbv.policies.episode import run_episode
+from train.conditioned import ConditionedSettings, _pool, draw_samples, run
+
+TINY = ConditionedConfig(point_channels=(8, 16), view_channels=(8,), visited_channels=4,
+                         head_channels=(16,))  # fmt: skip
+
+
+def _inputs(rng, b=3, n=40, v=7):
+    points = torch.from_numpy(rng.normal(size=(b, n, 3)).astype(np.float32)) * 0.3
+    directions = torch.nn.functional.normalize(torch.from_numpy(rng.normal(size=(b, v, 3))), dim=-1)
+    state = torch.zeros(b, v)
+    state[:, 0] = 1
+    state[1, 3] = 1
+    return points, directions.float(), state
+
+
+def test_scores_follow_the_candidates_not_their_order():
+    torch.manual_seed(0)
+    net = ViewConditionedNet(TINY).eval()
+    points, directions, state = _inputs(np.random.default_rng(0))
+    order = torch.tensor([4, 2, 6, 0, 1, 5, 3])
+    with torch.no_grad():
+        scores = net(points, directions, state)
+        shuffled = net(points, directions[:, order], state[:, order])
+        # A point order means nothing either.
+        again = net(points[:, torch.randperm(points.shape[1])], directions, state)
+    torch.testing.assert_close(shuffled, scores[:, order])
+    torch.testing.assert_close(again, scores)
+    assert scores.shape == (3, 7) and scores.std() > 0
+    # Any number of candidates: the first four alone score as among seven.
+    with torch.no_grad():
+        four = net(points, directions[:, :4], state[:, :4])
+    torch.testing.assert_close(four[0], scores[0, :4])  # sample 0's visited view is among them
+
+
+def test_checkpoint_round_trip_and_foreign_files(tmp_path):
+    net = ViewConditionedNet(TINY)
+    save_conditioned(tmp_path / "a.pt", net, {"eval_points": 64, "selection_keys": ["k"]})
+    loaded, extra = load_conditioned(tmp_path / "a.pt")
+    assert loaded.config == TINY and extra["eval_points"] == 64
+    for name, value in net.state_dict().items():
+        torch.testing.assert_close(loaded.state_dict()[name], value)
+    policy = ConditionedPolicy.from_checkpoint(tmp_path / "a.pt")
+    assert policy.n_points == 64 and policy.selected_on == ("k",)
+    pcnbv = save_tiny_checkpoint(tmp_path / "pcnbv.pt", "points")
+    with pytest.raises(CheckpointError, match="not a view-conditioned network checkpoint"):
+        load_conditioned(pcnbv)
+    with pytest.raises(CheckpointError, match="does not exist"):
+        load_conditioned(tmp_path / "missing.pt")
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    return make_train_dataset(tmp_path_factory.mktemp("conditioned"))
+
+
+def test_samples_hold_the_true_gains_of_a_turned_scene(dataset):
+    ds = nbv.dataset.open(dataset)
+    pool = _pool(ds.model(ds.keys(split="train")[0]))
+    assert len(pool.directions) == 66
+    settings = ConditionedSettings(dataset, dataset / "x", trajectories=3, steps=4, candidates=12,
+                                   train_points=50)  # fmt: skip
+    samples = draw_samples([pool], settings, np.random.default_rng(0))
+    again = draw_samples([pool], settings, np.random.default_rng(0))
+    for k, v in samples.items():
+        np.testing.assert_array_equal(again[k], v)  # seeded
+    assert samples["points"].shape == (12, 50, 3) and samples["target"].shape == (12, 12)
+    assert (samples["view_state"].sum(axis=1) == np.tile(np.arange(1, 5), 3)).all()
+    turns = set()
+    for points, d, s, t, pick in zip(*(samples[k] for k in
+                                      ("points", "directions", "view_state", "target", "pick")),
+                                     strict=True):  # fmt: skip
+        # The candidates are the pool's directions turned by one orthogonal map ...
+        turn, *_ = np.linalg.lstsq(pool.directions[pick], d, rcond=None)
+        np.testing.assert_allclose(turn.T @ turn, np.eye(3), atol=1e-5)
+        np.testing.assert_allclose(turn[:, 1], [0, 1, 0], atol=1e-5)  # about the up axis
+        turns.add(round(float(turn[0, 0]), 4))
+        # ... the cloud is the visited views' points turned by the same map ...
+        visited = np.concatenate([pool.points[p] for p in pick[s]])
+        tree = np.abs(points[:, None] - (visited @ turn)[None]).sum(-1).min(axis=1)
+        assert tree.max() < 1e-5
+        # ... and the targets are the true gains of those candidates.
+        np.testing.assert_allclose(t, coverage_gains(pool.bits[pick], s, pool.n_gt), atol=1e-7)
+        assert t[s].max() == 0 and t.max() > 0
+    assert len(turns) == 3  # every trajectory its own turn
+
+
+def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
+    settings = ConditionedSettings(
+        dataset, tmp_path / "run", epochs=2, trajectories=1, steps=3, train_points=64,
+        eval_points=64, start_views=(1, 10), net=TINY,
+    )  # fmt: skip
+    result = run(settings)
+    assert set(result["last"]) >= {"train_spearman", "val_spearman", "val_auc_permuted"}
+    assert (tmp_path / "run" / "metrics.csv").read_text().count("\n") == 3
+    policy = ConditionedPolicy.from_checkpoint(tmp_path / "run" / "best.pt")
+    ds = nbv.dataset.open(dataset)
+    model = ds.model(ds.keys(split="valid")[0])
+    for viewspace in ("original", "permuted"):
+        episode = run_episode(model, viewspace, 1, policy.fresh())
+        assert len(set(episode.views)) == 10
+    # Resuming a finished run trains nothing more and gives the same result.
+    assert run(settings)["last"] == result["last"]

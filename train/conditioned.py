@@ -1,0 +1,330 @@
+"""Training of the viewspace-conditioned network (:mod:`nbv.models.conditioned`).
+
+``python -m train.conditioned [key=value ...]`` (``conf/train_conditioned.yaml``).
+
+The network sees a different viewspace in every sample, so that no view index means anything to
+it. A sample is drawn from one training model of the dataset, whose views from *both* stored
+viewspaces (66 directions with their true coverage bits) are the pool:
+
+1. ``candidates`` of the pool's directions, drawn at random, in random order, are the sample's
+   viewspace (an original ring, a permuted one, a mix: new directions in the same band);
+2. the object and those directions are turned by one random rotation about the up axis, and
+   mirrored with probability 1/2: the same physical scene, so the gains are unchanged;
+3. a trajectory from a random seen candidate: at each step the best unvisited candidate by true
+   coverage gain, or with probability ``random_step_prob`` a random one; before each pick a
+   sample is stored (cloud: ``train_points`` random points of the visited views' stored points,
+   the directions, the view state and the true gains of the candidates).
+
+Every epoch draws new samples from ``(seed, epoch)``. The checkpoint kept as ``best.pt`` has the
+best mean validation AUC over the ``original`` and ``permuted`` viewspaces, on the *valid* split
+of the training categories; the unseen categories take no part. ``out_dir`` gets ``best.pt``,
+``last.pt`` and ``metrics.csv`` (train and validation loss and Spearman, AUC per viewspace).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import hydra
+import numpy as np
+import torch
+from omegaconf import MISSING, DictConfig
+
+import nbv.dataset
+from nbv.assets.categories import TRAIN_CATEGORIES
+from nbv.config.cli import entry_point, refuse
+from nbv.config.schema import PathsConfig, ProtocolConfig, register, validated
+from nbv.dataset.records import ModelData
+from nbv.geometry.scores import coverage_gains
+from nbv.models.conditioned import (
+    ConditionedConfig,
+    ViewConditionedNet,
+    load_conditioned,
+    save_conditioned,
+)
+from nbv.policies.conditioned import ConditionedPolicy, unit_directions
+from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
+from nbv.utils.atomic import atomic_path
+from nbv.utils.selection import masked_argmax
+from train.losses import LOSSES, batch_loss
+from train.metrics import spearman
+
+log = logging.getLogger("train.conditioned")
+PROG = "train.conditioned"
+VIEWSPACES = ("original", "permuted")
+
+
+@dataclass(frozen=True)
+class ConditionedSettings:
+    """See ``conf/train_conditioned.yaml`` for each."""
+
+    dataset: Path
+    out_dir: Path
+    seed: int = 0
+    epochs: int = 6
+    trajectories: int = 12
+    steps: int = 9
+    candidates: int = 33
+    random_step_prob: float = 0.3
+    batch_size: int = 32
+    lr: float = 1e-3
+    loss: str = "listwise"
+    train_points: int = 256
+    eval_points: int = 256
+    threads: int = 0
+    start_views: tuple[int, ...] = DEFAULT_START_VIEWS
+    categories: tuple[str, ...] = TRAIN_CATEGORIES
+    net: ConditionedConfig = field(default_factory=ConditionedConfig)
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("epochs", self.epochs >= 1, "an integer >= 1"),
+            ("trajectories", self.trajectories >= 1, "an integer >= 1"),
+            ("steps", self.steps >= 1, "an integer >= 1"),
+            ("candidates", self.candidates >= 2, "an integer >= 2"),
+            ("random_step_prob", 0 <= self.random_step_prob <= 1, "in [0, 1]"),
+            ("batch_size", self.batch_size >= 1, "an integer >= 1"),
+            ("lr", self.lr > 0, "a positive number"),
+            ("loss", self.loss in LOSSES, f"one of {', '.join(LOSSES)}"),
+        ]
+        for key, ok, allowed in checks:
+            if not ok:
+                raise ValueError(f"{key}={getattr(self, key)!r}: must be {allowed}")
+
+
+@dataclass(frozen=True)
+class _Pool:
+    """One model's views of both viewspaces: directions, coverage bits, stored points."""
+
+    directions: np.ndarray  # (P, 3) unit
+    bits: np.ndarray  # (P, bytes)
+    points: list[np.ndarray]  # P arrays (n_v, 3)
+    n_gt: int
+
+
+def _pool(model: ModelData) -> _Pool:
+    views = [model.views[name] for name in VIEWSPACES]
+    return _Pool(
+        directions=np.concatenate([unit_directions(v.poses[:, :3, 3]) for v in views]),
+        bits=np.concatenate([v.coverage for v in views]),
+        points=[v.view_points(i) for v in views for i in range(len(v.poses))],
+        n_gt=len(model.gt_points),
+    )
+
+
+def _turn(rng: np.random.Generator) -> np.ndarray:
+    """A random rotation about the up axis (y), mirrored in x with probability 1/2: (3, 3)."""
+    a = rng.uniform(0, 2 * np.pi)
+    m = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]])
+    return m @ np.diag([-1.0, 1, 1]) if rng.random() < 0.5 else m
+
+
+def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.random.Generator):
+    """An epoch's samples (see the module docstring): arrays ``points (S, n, 3)``,
+    ``directions (S, C, 3)``, ``view_state (S, C)`` bool, ``target (S, C)`` float32 and
+    ``pick (S, C)``, the candidates' rows in their model's pool."""
+    out: dict[str, list] = {k: [] for k in ("points", "directions", "view_state", "target", "pick")}
+    for pool in pools:
+        for _ in range(settings.trajectories):
+            pick = rng.choice(len(pool.directions), settings.candidates, replace=False)
+            turn = _turn(rng)
+            directions = (pool.directions[pick] @ turn.T).astype(np.float32)
+            bits = pool.bits[pick]
+            seen = [i for i, p in enumerate(pick) if len(pool.points[p])]
+            if not seen:
+                continue
+            state = np.zeros(settings.candidates, bool)
+            state[rng.choice(seen)] = True
+            for _ in range(min(settings.steps, settings.candidates - 1)):
+                gains = coverage_gains(bits, state, pool.n_gt).astype(np.float32)
+                cloud = np.concatenate([pool.points[p] for p in pick[state]])
+                subset = rng.choice(
+                    len(cloud), settings.train_points, len(cloud) < settings.train_points
+                )
+                out["points"].append((cloud[subset] @ turn.T).astype(np.float32))
+                out["directions"].append(directions)
+                out["view_state"].append(state.copy())
+                out["target"].append(gains)
+                out["pick"].append(pick)
+                if rng.random() < settings.random_step_prob:
+                    nxt = int(rng.choice(np.flatnonzero(~state)))
+                else:
+                    nxt = masked_argmax(gains, state)
+                state[nxt] = True
+    return {k: np.stack(v) for k, v in out.items()}
+
+
+def _tensors(samples: dict, index: np.ndarray) -> list[torch.Tensor]:
+    return [
+        torch.from_numpy(samples[k][index].astype(np.float32))
+        for k in ("points", "directions", "view_state", "target")
+    ]
+
+
+def _predict(model, samples: dict, batch_size: int) -> np.ndarray:
+    model.eval()
+    preds = []
+    with torch.no_grad():
+        for start in range(0, len(samples["points"]), batch_size):
+            x, d, s, _ = _tensors(
+                samples, np.arange(start, min(start + batch_size, len(samples["points"])))
+            )
+            preds.append(model(x, d, s).numpy())
+    return np.concatenate(preds)
+
+
+def _validation_auc(model, dataset, keys: list[str], settings: ConditionedSettings) -> dict:
+    policy = ConditionedPolicy(model, settings.eval_points)
+    result = {}
+    for name in VIEWSPACES:
+        curves = [
+            run_episode(dataset.model(key, (name,)), name, int(start), policy.fresh()).coverage
+            for key in keys
+            for start in settings.start_views
+        ]
+        result[f"val_auc_{name}"] = auc(np.mean(curves, axis=0))
+    return result
+
+
+def _append_csv(path: Path, rows: list[dict]) -> None:
+    columns = list(dict.fromkeys(k for r in rows for k in r))
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, columns)
+        writer.writeheader()
+        writer.writerows(rows)
+
+
+def run(settings: ConditionedSettings) -> dict:
+    """Train; returns the last epoch's metrics and the chosen epoch. Resumes from ``last.pt``
+    when it holds the same settings."""
+    if settings.threads:
+        torch.set_num_threads(settings.threads)
+    dataset = nbv.dataset.open(settings.dataset)
+    categories = set(settings.categories)
+    train_keys = [k for k in dataset.keys(split="train") if dataset.index[k][1] in categories]
+    valid_keys = [k for k in dataset.keys(split="valid") if dataset.index[k][1] in categories]
+    if not train_keys or not valid_keys:
+        raise ValueError(
+            f"{settings.dataset}: {len(train_keys)} train and {len(valid_keys)} valid models of "
+            f"the training categories; both are needed"
+        )
+    log.info("%d training, %d validation models", len(train_keys), len(valid_keys))
+    pools = [_pool(dataset.model(k, VIEWSPACES)) for k in train_keys]
+    val_pools = [_pool(dataset.model(k, VIEWSPACES)) for k in valid_keys]
+    val_samples = draw_samples(val_pools, settings, np.random.default_rng([settings.seed, 10**6]))
+    torch.manual_seed(settings.seed)
+    model = ViewConditionedNet(settings.net)
+    optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
+    out = settings.out_dir
+    out.mkdir(parents=True, exist_ok=True)
+    plain = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(settings).items()}
+    plain["start_views"], plain["categories"] = (
+        list(plain["start_views"]),
+        list(plain["categories"]),
+    )
+    plain["net"] = settings.net.to_dict()
+    rows, best, first = [], -np.inf, 0
+    last = out / "last.pt"
+    if last.exists():
+        saved, extra = load_conditioned(last)
+        if extra.get("settings") == plain:
+            model.load_state_dict(saved.state_dict())
+            opt = extra["optimizer"]
+            opt["state"] = {int(k): v for k, v in opt["state"].items()}
+            optimizer.load_state_dict(opt)
+            rows, best, first = list(extra["rows"]), float(extra["best"]), int(extra["epoch"]) + 1
+            log.info("resuming at epoch %d", first + 1)
+        else:
+            raise ValueError(f"{last} was trained with other settings; set another out_dir")
+    for epoch in range(first, settings.epochs):
+        t0 = time.perf_counter()
+        rng = np.random.default_rng([settings.seed, epoch])
+        samples = draw_samples(pools, settings, rng)
+        order = rng.permutation(len(samples["points"]))
+        model.train()
+        losses = []
+        for i in range(0, len(order), settings.batch_size):
+            x, d, s, t = _tensors(samples, order[i : i + settings.batch_size])
+            optimizer.zero_grad()
+            loss = batch_loss(settings.loss, model(x, d, s), t, s)
+            loss.backward()
+            optimizer.step()
+            losses.append(loss.item())
+        probe = {k: v[order[:300]] for k, v in samples.items()}
+        train_pred = _predict(model, probe, settings.batch_size)
+        val_pred = _predict(model, val_samples, settings.batch_size)
+        row = {
+            "epoch": epoch + 1,
+            "samples": len(order),
+            "train_loss": float(np.mean(losses)),
+            "train_spearman": spearman(train_pred, probe["target"], probe["view_state"]),
+            "val_spearman": spearman(val_pred, val_samples["target"], val_samples["view_state"]),
+            **_validation_auc(model, dataset, valid_keys, settings),
+            "seconds": time.perf_counter() - t0,
+        }
+        rows.append(row)
+        log.info("epoch %d: %s", epoch + 1, {k: round(v, 4) for k, v in row.items()})
+        score = np.mean([row[f"val_auc_{v}"] for v in VIEWSPACES])
+        extra = {"settings": plain, "eval_points": settings.eval_points, "epoch": epoch,
+                 "selection_keys": valid_keys, "rows": rows}  # fmt: skip
+        if score > best:
+            best = float(score)
+            save_conditioned(out / "best.pt", model, extra)
+        opt = optimizer.state_dict()
+        opt["state"] = {str(k): v for k, v in opt["state"].items()}
+        save_conditioned(last, model, {**extra, "best": best, "optimizer": opt})
+        _append_csv(out / "metrics.csv", rows)
+    return {"last": rows[-1], "best_val_auc": best}
+
+
+@dataclass
+class ConditionedTrainConfig:
+    """The schema of ``conf/train_conditioned.yaml``."""
+
+    dataset: str = MISSING
+    out_dir: str = MISSING
+    seed: int = MISSING
+    epochs: int = MISSING
+    trajectories: int = MISSING
+    steps: int = MISSING
+    candidates: int = MISSING
+    random_step_prob: float = MISSING
+    batch_size: int = MISSING
+    lr: float = MISSING
+    loss: str = MISSING
+    train_points: int = MISSING
+    eval_points: int = MISSING
+    threads: int = MISSING
+    start_views: list[int] = MISSING
+    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
+    paths: PathsConfig = field(default_factory=PathsConfig)
+
+
+register("train_conditioned_schema", ConditionedTrainConfig)
+
+
+def settings_from_config(cfg) -> ConditionedSettings:
+    """:class:`ConditionedSettings` from the composed config (``ConfigError`` names a bad key)."""
+    c = validated(ConditionedTrainConfig, cfg)
+    del c["protocol"], c["paths"]
+    c["dataset"], c["out_dir"] = Path(c["dataset"]), Path(c["out_dir"])
+    c["start_views"] = tuple(c["start_views"])
+    return ConditionedSettings(**c)
+
+
+@hydra.main(config_path="../conf", config_name="train_conditioned", version_base="1.3")
+def main(cfg: DictConfig) -> None:
+    try:
+        settings = settings_from_config(cfg)
+        result = run(settings)
+    except ValueError as err:
+        refuse(PROG, err)
+    log.info("done: best mean validation AUC %.4f in %s", result["best_val_auc"], settings.out_dir)
+
+
+if __name__ == "__main__":
+    entry_point(PROG, main)
