@@ -120,3 +120,37 @@ def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
         assert len(set(episode.views)) == 10
     # Resuming a finished run trains nothing more and gives the same result.
     assert run(settings)["last"] == result["last"]
+
+
+def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset):
+    from nbv.assets.weights import is_shipped, shipped_weights
+    from nbv.eval.config import EvalSettings
+    from nbv.eval.evaluate import with_shipped_weights
+    from train.ship import ship
+
+    # Shipping keeps the weights to bfloat16 and records where they came from.
+    torch.manual_seed(1)
+    net = ViewConditionedNet(TINY)
+    save_conditioned(tmp_path / "best.pt", net, {"eval_points": 64, "optimizer": {"state": {}}})
+    provenance = ship(tmp_path / "best.pt", tmp_path / "shipped.pt", "python -m x", dataset)
+    loaded, extra = load_conditioned(tmp_path / "shipped.pt")
+    assert extra["shipped"] == provenance and "optimizer" not in extra
+    assert len(provenance["dataset_identity"]) == 16
+    for name, value in net.state_dict().items():
+        torch.testing.assert_close(loaded.state_dict()[name], value.bfloat16().float())
+    # The package's own vcnbv weights play an episode; they stand in for a missing checkpoint.
+    path = shipped_weights("vcnbv")
+    assert path is not None and is_shipped(path) and shipped_weights("pcnbv") is None
+    policy = ConditionedPolicy.from_checkpoint(path)
+    ds = nbv.dataset.open(dataset)
+    episode = run_episode(ds.model(ds.keys(split="valid")[0]), "permuted", 3, policy)
+    assert len(set(episode.views)) == 10
+    missing = str(tmp_path / "no.pt")
+    checkpoints = {"vcnbv": missing, "pcnbv": missing, "pcnbv_sph": missing}
+    settings = EvalSettings(out_dir=tmp_path / "e", checkpoints=checkpoints)
+    replaced = with_shipped_weights(settings).checkpoints
+    assert replaced["vcnbv"] == str(path) and replaced["pcnbv"] == missing
+    kept = EvalSettings(
+        out_dir=tmp_path / "e", checkpoints={**replaced, "vcnbv": str(tmp_path / "shipped.pt")}
+    )
+    assert with_shipped_weights(kept).checkpoints["vcnbv"] == str(tmp_path / "shipped.pt")

@@ -76,6 +76,7 @@ class ConditionedSettings:
     train_points: int = 256
     eval_points: int = 256
     threads: int = 0
+    max_models: int = 0
     start_views: tuple[int, ...] = DEFAULT_START_VIEWS
     categories: tuple[str, ...] = TRAIN_CATEGORIES
     net: ConditionedConfig = field(default_factory=ConditionedConfig)
@@ -90,6 +91,7 @@ class ConditionedSettings:
             ("batch_size", self.batch_size >= 1, "an integer >= 1"),
             ("lr", self.lr > 0, "a positive number"),
             ("loss", self.loss in LOSSES, f"one of {', '.join(LOSSES)}"),
+            ("max_models", self.max_models >= 0, "an integer >= 0 (0: every training model)"),
         ]
         for key, ok, allowed in checks:
             if not ok:
@@ -158,6 +160,25 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
     return {k: np.stack(v) for k, v in out.items()}
 
 
+def subset(keys: list[str], categories: list[str], settings: ConditionedSettings) -> list[str]:
+    """The first ``max_models`` of ``keys`` taking the categories in turn, each category's
+    models in a seeded order (all of them for 0): a learning curve's smaller training sets
+    are nested and balanced."""
+    if not settings.max_models or settings.max_models >= len(keys):
+        return list(keys)
+    rng = np.random.default_rng([settings.seed, 7])
+    queues = {c: [k for k, kc in zip(keys, categories, strict=True) if kc == c]
+              for c in sorted(set(categories))}  # fmt: skip
+    for c in queues:
+        queues[c] = [queues[c][i] for i in rng.permutation(len(queues[c]))]
+    out: list[str] = []
+    while len(out) < settings.max_models:
+        for c in queues:
+            if queues[c] and len(out) < settings.max_models:
+                out.append(queues[c].pop(0))
+    return out
+
+
 def _tensors(samples: dict, index: np.ndarray) -> list[torch.Tensor]:
     return [
         torch.from_numpy(samples[k][index].astype(np.float32))
@@ -212,6 +233,7 @@ def run(settings: ConditionedSettings) -> dict:
             f"{settings.dataset}: {len(train_keys)} train and {len(valid_keys)} valid models of "
             f"the training categories; both are needed"
         )
+    train_keys = subset(train_keys, [dataset.index[k][1] for k in train_keys], settings)
     log.info("%d training, %d validation models", len(train_keys), len(valid_keys))
     pools = [_pool(dataset.model(k, VIEWSPACES)) for k in train_keys]
     val_pools = [_pool(dataset.model(k, VIEWSPACES)) for k in valid_keys]
@@ -299,6 +321,7 @@ class ConditionedTrainConfig:
     train_points: int = MISSING
     eval_points: int = MISSING
     threads: int = MISSING
+    max_models: int = MISSING
     start_views: list[int] = MISSING
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
     paths: PathsConfig = field(default_factory=PathsConfig)

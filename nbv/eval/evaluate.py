@@ -12,6 +12,7 @@ so an interrupted evaluation resumes where it stopped. :func:`run` also writes t
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import os
 import time
@@ -21,6 +22,7 @@ from typing import NamedTuple
 
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
+from nbv.assets.weights import shipped_weights
 from nbv.dataset.reader import Dataset
 from nbv.eval.config import EvalSettings
 from nbv.eval.disturb import disturbed, noise_check
@@ -292,6 +294,20 @@ def worker_count(settings: EvalSettings) -> int:
     return max(1, min(8, len(os.sched_getaffinity(0))))
 
 
+def with_shipped_weights(settings: EvalSettings) -> EvalSettings:
+    """The settings with each selected network's missing checkpoint replaced by the weights the
+    package ships for it (:mod:`nbv.assets.weights`), when it ships any."""
+    found = {}
+    for method, path in settings.checkpoints.items():
+        shipped = shipped_weights(method)
+        if method in settings.methods and not Path(path).exists() and shipped is not None:
+            log.info("%s: no checkpoint at %s; using the shipped weights %s", method, path, shipped)
+            found[method] = str(shipped)
+    if not found:
+        return settings
+    return dataclasses.replace(settings, checkpoints={**settings.checkpoints, **found})
+
+
 def evaluate(settings: EvalSettings) -> Evaluation:
     """Run every episode of the settings (see the module docstring)."""
     from tqdm import tqdm
@@ -386,7 +402,7 @@ def run(settings: EvalSettings) -> Path:
     """
     from nbv.eval.report import write_outputs
 
-    evaluation = evaluate(settings)
+    evaluation = evaluate(with_shipped_weights(settings))
     # The numbers first: a failure while drawing must not lose them. report.md is written
     # again after the plots, to show them.
     write_outputs(evaluation)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nbv.assets.weights import is_shipped
 from nbv.eval.claims import claims
 from nbv.eval.disturb import auc_changes
 from nbv.eval.tables import (
@@ -234,7 +235,12 @@ def report_markdown(evaluation) -> str:
             )
     nets = [m for m in s.checkpoints if m in methods]
     if nets:
-        lines += ["", "Networks: " + "; ".join(f"`{m}` from `{s.checkpoints[m]}`" for m in nets)]
+        lines += ["", "Networks: " + "; ".join(
+            f"`{m}` from `{s.checkpoints[m]}`"
+            + (" (the weights the package ships: no local training run)"
+               if is_shipped(s.checkpoints[m]) else "")
+            for m in nets
+        )]  # fmt: skip
     if evaluation.skipped:
         lines += ["", "Skipped methods:"]
         lines += [f"- `{m}`: {reason}" for m, reason in evaluation.skipped.items()]

@@ -162,7 +162,8 @@ def load_conditioned(path: str | os.PathLike[str]) -> tuple[ViewConditionedNet, 
         )
     try:
         model = ViewConditionedNet(ConditionedConfig.from_dict(payload["config"]))
-        model.load_state_dict(payload["state_dict"], strict=True)
+        # Shipped weights are bfloat16; the network runs in float32.
+        model.load_state_dict({k: v.float() for k, v in payload["state_dict"].items()}, strict=True)
     except (KeyError, TypeError, ValueError, RuntimeError) as e:
         reason = " ".join(str(e).split())
         raise CheckpointError(f"checkpoint {path} does not fit its config: {reason}") from e
