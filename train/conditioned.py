@@ -292,7 +292,8 @@ def run(settings: ConditionedSettings) -> dict:
         log.info("epoch %d: %s", epoch + 1, {k: round(v, 4) for k, v in row.items()})
         score = np.mean([row[f"val_auc_{v}"] for v in VIEWSPACES])
         extra = {"settings": plain, "eval_points": settings.eval_points, "epoch": epoch,
-                 "selection_keys": valid_keys, "rows": rows}  # fmt: skip
+                 "selection_keys": valid_keys, "rows": rows,
+                 "train_models": len(train_keys)}  # fmt: skip
         if score > best:
             best = float(score)
             save_conditioned(out / "best.pt", model, extra)
