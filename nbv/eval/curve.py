@@ -1,4 +1,4 @@
-"""``python -m train.curve <run folder> ... [--out outputs/curve]``: the learning curve of the
+"""``python -m nbv.eval.curve <run folder> ... [--out outputs/curve]``: the learning curve of the
 viewspace-conditioned network over the number of training models.
 
 Each run folder is a ``python -m train.conditioned`` run (``max_models=N``). Its ``best.pt`` plays
@@ -24,7 +24,7 @@ from nbv.models.conditioned import load_conditioned
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean
 
-log = logging.getLogger("train.curve")
+log = logging.getLogger("nbv.eval.curve")
 VIEWSPACES = ("original", "permuted")
 BASELINES = ("random", "spread", "oracle")
 
@@ -114,7 +114,7 @@ def _write(out: Path, rows: list[dict], lines: dict[str, float]) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(prog="train.curve", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="nbv.eval.curve", description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path, help="train.conditioned run folders")
     parser.add_argument("--out", type=Path, default=Path("outputs/curve"))
     parser.add_argument("--data-dir", type=Path, default=Path("data/generated/synthetic"))
