@@ -154,3 +154,25 @@ def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset
         out_dir=tmp_path / "e", checkpoints={**replaced, "vcnbv": str(tmp_path / "shipped.pt")}
     )
     assert with_shipped_weights(kept).checkpoints["vcnbv"] == str(tmp_path / "shipped.pt")
+
+
+def test_learning_curve_table_and_plot(tmp_path):
+    from nbv.eval.curve import _auc_by_episode, _write
+
+    episodes = [
+        {"method": "random", "viewspace": "original", "key": "a", "start": 1, "auc": 0.5},
+        {"method": "random", "viewspace": "original", "key": "a", "start": 1, "auc": 0.7},
+        {"method": "spread", "viewspace": "original", "key": "a", "start": 1, "auc": 0.65},
+    ]
+    assert _auc_by_episode(episodes, "random", "original") == {("a", 1): pytest.approx(0.6)}
+    assert _auc_by_episode(episodes, "random", "permuted") == {}
+    rows = [{"models": m, "epoch": 2, "val_original": 0.7, "val_permuted": 0.69,
+             "auc_original": 0.72 + m / 1000, "auc_permuted": 0.73,
+             "minus_spread_original": "+0.01", "minus_spread_permuted": "-0.00"} for m in (8, 16, 32)]  # fmt: skip
+    lines = {
+        f"{m}_{vs}": 0.7 for m in ("random", "spread", "oracle") for vs in ("original", "permuted")
+    }
+    _write(tmp_path, rows, lines)
+    table = (tmp_path / "curve.md").read_text()
+    assert table.count("\n| ") == 3 and "| 16 | 2 | 0.700 / 0.690 | 0.736 / 0.730 |" in table
+    assert (tmp_path / "curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
