@@ -86,6 +86,8 @@ class TrainSettings:
     random_repeats: int = 10
     loss: str = "squared"
     augment: bool = True
+    loader_workers: int = 0
+    pin_memory: bool = True
     categories: tuple[str, ...] = TRAIN_CATEGORIES
 
     def __post_init__(self) -> None:
@@ -105,6 +107,7 @@ class TrainSettings:
             ("select", self.select in SELECTIONS, f"one of {', '.join(SELECTIONS)}"),
             ("random_repeats", self.random_repeats >= 1, "an integer >= 1"),
             ("loss", self.loss in LOSSES, f"one of {', '.join(LOSSES)}"),
+            ("loader_workers", self.loader_workers >= 0, "an integer >= 0"),
         ]
         for key, ok, allowed in checks:
             if not ok:
@@ -166,6 +169,8 @@ class TrainConfig:
     random_repeats: int = MISSING
     loss: str = MISSING
     augment: bool = MISSING
+    loader_workers: int = MISSING
+    pin_memory: bool = MISSING
     out_dir: str = MISSING
     score: ScoreConfig = field(default_factory=ScoreConfig)
     model: ModelConfig = field(default_factory=ModelConfig)

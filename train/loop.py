@@ -209,6 +209,38 @@ def _resume(out_dir: Path, identity: dict, model, optimizer, scheduler) -> tuple
     return int(extra["epoch"]) + 1, float(extra.get("best_auc", -np.inf))
 
 
+def _batches(train, batches, settings: TrainSettings, rng, augmentation, epoch: int, device):
+    """The epoch's input tensors, batch after batch.
+
+    ``loader_workers=0``: built here, in order, from the epoch's generator ``rng``. Otherwise
+    that many threads build them ahead, each batch from its own generator ``(seed, epoch,
+    batch)`` (the same arrays for any number of workers, another draw than with 0). On CUDA with
+    ``pin_memory`` the tensors are pinned, so the copy to the device overlaps the step.
+    """
+    pin = settings.pin_memory and device.type == "cuda"
+
+    def build(i: int, index: np.ndarray, generator) -> tuple:
+        tensors = batch_inputs(train, index, settings, generator, augmentation)
+        return tuple(a.pin_memory() for a in tensors) if pin else tensors
+
+    if settings.loader_workers == 0:
+        for i, index in enumerate(batches):
+            yield build(i, index, rng)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(settings.loader_workers) as pool:
+        ahead = 2 * settings.loader_workers
+        futures = []
+        for i, index in enumerate(batches):
+            generator = np.random.default_rng([settings.seed, epoch, i])
+            futures.append(pool.submit(build, i, index, generator))
+            if len(futures) > ahead:
+                yield futures.pop(0).result()
+        for future in futures:
+            yield future.result()
+
+
 def _augmentation(settings: TrainSettings, dataset, samples: SampleSet, lmax: int):
     """The samples' viewspace symmetries when ``augment`` is on and it has any, else None."""
     if not settings.augment:
@@ -347,11 +379,10 @@ def _train(settings: TrainSettings) -> dict:
         bar = tqdm(
             batches, desc=f"epoch {epoch + 1}/{settings.epochs}", disable=not settings.progress
         )
-        for index in bar:
+        prepared = _batches(train, batches, settings, rng, augmentation, epoch, device)
+        for index, tensors in zip(bar, prepared, strict=True):
             t0 = time.perf_counter()
-            x, s, t = (
-                a.to(device) for a in batch_inputs(train, index, settings, rng, augmentation)
-            )
+            x, s, t = (a.to(device, non_blocking=True) for a in tensors)
             t1 = time.perf_counter()
             optimizer.zero_grad()
             with autocast(settings.precision, device):
