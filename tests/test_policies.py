@@ -3,6 +3,7 @@ at the second view, seeding, agreement with direct calls of the planner, no grou
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 from pathlib import Path
 
@@ -387,6 +388,23 @@ def test_information_gain_is_deterministic_and_maps_each_view_once(model):
     # The last pick is made on the map of the 9 views before it; each went in once.
     assert first.integrated == a.views[:-1]
     assert first.counts["planned"] == len(a.views) - 1 == len(first.timings["gains"])
+    # Episodes sharing a run's traced views build the same map as a fresh trace of each view.
+    shared: dict = {}
+    for start in (3, 10):
+        run_episode(model, "original", start, InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA,
+                                                                    traced=shared))  # fmt: skip
+    kept = len(shared["views"])
+    again = InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA, traced=shared)
+    assert run_episode(model, "original", 3, again).views == a.views
+    assert len(shared["views"]) == kept  # all from the cache
+    np.testing.assert_array_equal(again.occupancy.log_odds, first.occupancy.log_odds)
+    # A disturbed cloud is another view: traced afresh.
+    noisy = copy.deepcopy(model)
+    noisy.views["original"].points += np.float32(0.01)
+    run_episode(
+        noisy, "original", 3, InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA, traced=shared)
+    )
+    assert len(shared["views"]) > kept
 
 
 def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):

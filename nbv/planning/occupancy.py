@@ -161,11 +161,15 @@ class OccupancyMap:
         norms = np.linalg.norm(directions, axis=1, keepdims=True)
         return origin + directions / np.where(norms > 0, norms, 1.0) * reach
 
-    def insert_view(
+    def view_voxels(
         self, origin: np.ndarray, hits: np.ndarray, miss_directions: np.ndarray | None = None
-    ) -> None:
-        """Add one view: rays from ``origin`` (3,) to each of ``hits`` (N, 3), and rays along
-        ``miss_directions`` (M, 3) that hit nothing (world units and frame)."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """What one view does to the map, before the update: ``(free, occupied)`` sorted flat
+        voxel indices, the voxels its rays cross (but do not end in) and those they end in.
+        They depend on the view and the grid only, not on the map: a planner may keep them.
+
+        Args: as :meth:`insert_view`.
+        """
         s = self.settings
         origin = np.asarray(origin, dtype=np.float64).reshape(3)
         hits = np.asarray(hits, dtype=np.float64).reshape(-1, 3)
@@ -180,8 +184,20 @@ class OccupancyMap:
         crossed = np.zeros(len(self.log_odds), dtype=bool)
         for rays in (before_hits, carved):
             crossed[rays[rays >= 0]] = True
-        self._update(np.flatnonzero(crossed & ~hit), log_odds_of(s.p_miss))
-        self._update(np.flatnonzero(hit), log_odds_of(s.p_hit))
+        return np.flatnonzero(crossed & ~hit), np.flatnonzero(hit)
+
+    def apply_view(self, voxels: tuple[np.ndarray, np.ndarray]) -> None:
+        """Update the map by a view's :meth:`view_voxels`: misses, then hits."""
+        free, occupied = voxels
+        self._update(free, log_odds_of(self.settings.p_miss))
+        self._update(occupied, log_odds_of(self.settings.p_hit))
+
+    def insert_view(
+        self, origin: np.ndarray, hits: np.ndarray, miss_directions: np.ndarray | None = None
+    ) -> None:
+        """Add one view: rays from ``origin`` (3,) to each of ``hits`` (N, 3), and rays along
+        ``miss_directions`` (M, 3) that hit nothing (world units and frame)."""
+        self.apply_view(self.view_voxels(origin, hits, miss_directions))
 
     def _update(self, voxels: np.ndarray, delta: float) -> None:
         s = self.settings

@@ -8,6 +8,7 @@ views' points and poses and the candidates' poses, nothing else.
 
 from __future__ import annotations
 
+import hashlib
 import time
 from dataclasses import dataclass, field
 
@@ -48,12 +49,24 @@ class InformationGainPolicy:
         for v in state.order:
             if v in self.integrated:
                 continue
-            points = view.view_points(v)
-            misses = background_directions(
-                points, view.poses[v], self.intrinsics, self.settings.block
-            )
-            self.occupancy.insert_view(view.poses[v][:3, 3], points, misses)
+            self.occupancy.apply_view(self._view_voxels(view, v))
             self.integrated.append(v)
+
+    def _view_voxels(self, view, v: int) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`OccupancyMap.view_voxels` of view ``v``, kept in ``traced`` for the episodes of
+        the same views (keyed by the view's points and pose, so a disturbed cloud is traced
+        afresh; only the last model's views are kept)."""
+        points, pose = view.view_points(v), view.poses[v]
+        digest = hashlib.blake2b(points.tobytes(), digest_size=16)
+        digest.update(np.asarray(pose).tobytes())
+        key = (digest.hexdigest(), self.intrinsics, self.settings.block, self.settings.occupancy())
+        kept = self.traced.setdefault("views", {})
+        if key not in kept:
+            if len(kept) >= 4 * 66:  # about two models' views of both viewspaces
+                kept.clear()
+            misses = background_directions(points, pose, self.intrinsics, self.settings.block)
+            kept[key] = self.occupancy.view_voxels(pose[:3, 3], points, misses)
+        return kept[key]
 
     def candidate_voxels(self, poses: np.ndarray) -> np.ndarray:
         """(V, R, S) voxels of the rays of every view of ``poses`` (traced once per poses)."""
