@@ -23,6 +23,7 @@ decision may take; a dense array of this small region reads them at numpy speed.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -131,6 +132,20 @@ def background_directions(
     return world / np.linalg.norm(world, axis=1, keepdims=True)
 
 
+@functools.lru_cache(maxsize=4)
+def _prior(settings: OccupancySettings) -> np.ndarray:
+    """(n^3,) log-odds of an empty map: unknown (NaN), but free outside ``object_radius``.
+    Memoised (read-only): every episode starts from it."""
+    log_odds = np.full(settings.n**3, np.nan)
+    if settings.object_radius is not None:
+        s = settings
+        axis = (np.arange(s.n) + 0.5) * s.resolution - s.bound
+        grid = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), axis=-1).reshape(-1, 3)
+        log_odds[np.linalg.norm(grid, axis=1) > s.object_radius] = log_odds_of(s.clamp_min)
+    log_odds.flags.writeable = False
+    return log_odds
+
+
 class OccupancyMap:
     """Clamped log-odds occupancy of the region's voxels; NaN for unknown ones.
 
@@ -141,10 +156,7 @@ class OccupancyMap:
 
     def __init__(self, settings: OccupancySettings | None = None) -> None:
         self.settings = settings or OccupancySettings()
-        self.log_odds = np.full(self.settings.n**3, np.nan)
-        if self.settings.object_radius is not None:
-            outside = np.linalg.norm(self.centres(), axis=1) > self.settings.object_radius
-            self.log_odds[outside] = log_odds_of(self.settings.clamp_min)
+        self.log_odds = _prior(self.settings).copy()
 
     def voxel_of(self, points: np.ndarray) -> np.ndarray:
         """(N,) flat voxel index of each (N, 3) point; -1 outside the region."""
