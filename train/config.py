@@ -27,9 +27,10 @@ from nbv.dataset.reader import SHARD_GLOB
 from nbv.geometry.viewspace import get_viewspace
 from nbv.models.config import PRECISIONS, PCNBVConfig
 from nbv.policies.episode import DEFAULT_START_VIEWS
-from train.losses import LOSSES
 
 SCORES = ("coverage", "vig")
+#: The training losses (:mod:`train.losses`), named here so that settings load without torch.
+LOSSES = ("squared", "normalised", "listwise")
 INPUTS = ("points", "signature")
 DEVICES = ("auto", "cpu", "cuda")
 #: How the evaluated checkpoint (best.pt) is chosen: by the validation AUC on the valid split of

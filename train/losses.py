@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import torch
 
-#: The loss names of ``loss=...``.
-LOSSES = ("squared", "normalised", "listwise")
+from train.config import LOSSES
+
+__all__ = ["LOSSES", "batch_loss", "per_sample_loss"]
 
 
 def _normalised(target: torch.Tensor) -> torch.Tensor:
