@@ -44,18 +44,16 @@ def check_plain(value: Any, where: str) -> None:
         )
 
 
-def save_checkpoint(path: str | os.PathLike[str], model: PCNBV, extra: Mapping[str, Any]) -> None:
-    """Write the weights, the model config and ``extra`` (training config, dataset identity,
-    epoch, metrics, ...) to ``path`` atomically: a temporary file in the same folder, renamed
-    over ``path`` once complete. Creates missing parent folders.
-
-    Raises:
-        TypeError: ``extra`` holds a value :func:`load_checkpoint` could not read back safely.
-    """
+def write_payload(
+    path: str | os.PathLike[str], tag: str, version: int, model: Any, extra: Mapping[str, Any]
+) -> None:
+    """Write a network checkpoint atomically: the format ``tag`` and ``version``, the model's
+    ``config.to_dict()``, its weights on the CPU and ``extra`` (checked by :func:`check_plain`).
+    Creates missing parent folders."""
     check_plain(dict(extra), "")
     payload = {
-        "format": CHECKPOINT_FORMAT,
-        "version": CHECKPOINT_VERSION,
+        "format": tag,
+        "version": version,
         "config": model.config.to_dict(),
         "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
         "extra": dict(extra),
@@ -64,6 +62,47 @@ def save_checkpoint(path: str | os.PathLike[str], model: PCNBV, extra: Mapping[s
     # named after the temporary file: the bytes do not depend on the file name.
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         torch.save(payload, f)
+
+
+def read_payload(
+    path: Path, tag: str, version: int, kind: str, map_location: str | torch.device = "cpu"
+) -> dict[str, Any]:
+    """The payload of a checkpoint of :func:`write_payload` with format ``tag`` and ``version``.
+
+    Raises:
+        CheckpointError: (naming the file, ``kind`` naming the network) it is missing, not a
+            torch file, of another format or version, or lacks its config, weights or extra.
+    """
+    if not path.is_file():
+        raise CheckpointError(f"checkpoint {path} does not exist or is not a file")
+    try:
+        payload = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as e:
+        raise CheckpointError(f"checkpoint {path} is not a readable torch file: {e}") from e
+    found = payload.get("format") if isinstance(payload, dict) else None
+    if found != tag:
+        which = "no format tag" if found is None else f"format tag {found!r}"
+        raise CheckpointError(f"checkpoint {path} is not a {kind} checkpoint ({which})")
+    if payload.get("version") != version:
+        raise CheckpointError(
+            f"checkpoint {path} has version {payload.get('version')!r}; "
+            f"this code reads version {version}"
+        )
+    missing = [k for k in ("config", "state_dict", "extra") if not isinstance(payload.get(k), dict)]
+    if missing:
+        raise CheckpointError(f"checkpoint {path} lacks the dicts {missing}")
+    return payload
+
+
+def save_checkpoint(path: str | os.PathLike[str], model: PCNBV, extra: Mapping[str, Any]) -> None:
+    """Write the weights, the model config and ``extra`` (training config, dataset identity,
+    epoch, metrics, ...) to ``path`` atomically: a temporary file in the same folder, renamed
+    over ``path`` once complete. Creates missing parent folders.
+
+    Raises:
+        TypeError: ``extra`` holds a value :func:`load_checkpoint` could not read back safely.
+    """
+    write_payload(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, model, extra)
 
 
 def load_checkpoint(
@@ -87,22 +126,7 @@ def load_checkpoint(
             number of views differs from ``n_views``.
     """
     path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"checkpoint {path} does not exist or is not a file")
-    try:
-        payload = torch.load(path, map_location=map_location, weights_only=True)
-    except Exception as e:
-        raise CheckpointError(f"checkpoint {path} is not a readable torch file: {e}") from e
-    if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
-        raise CheckpointError(f"checkpoint {path} is not a PCNBV checkpoint (no format tag)")
-    if payload.get("version") != CHECKPOINT_VERSION:
-        raise CheckpointError(
-            f"checkpoint {path} has version {payload.get('version')!r}; "
-            f"this code reads version {CHECKPOINT_VERSION}"
-        )
-    missing = [k for k in ("config", "state_dict", "extra") if not isinstance(payload.get(k), dict)]
-    if missing:
-        raise CheckpointError(f"checkpoint {path} lacks the dicts {missing}")
+    payload = read_payload(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "PCNBV", map_location)
     try:
         config = PCNBVConfig.from_dict(payload["config"])
     except (TypeError, ValueError) as e:

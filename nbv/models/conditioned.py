@@ -27,8 +27,7 @@ from typing import Any
 import torch
 from torch import Tensor, nn
 
-from nbv.models.checkpoints import CheckpointError, check_plain
-from nbv.utils.atomic import atomic_path
+from nbv.models.checkpoints import CheckpointError, read_payload, write_payload
 
 #: The file-format tag of this network's checkpoints.
 CONDITIONED_FORMAT = "nbv.net.ViewConditioned"
@@ -124,16 +123,7 @@ def save_conditioned(
 ) -> None:
     """Write weights, config and ``extra`` atomically (the layout of
     :func:`nbv.models.checkpoints.save_checkpoint`, another format tag)."""
-    check_plain(dict(extra), "")
-    payload = {
-        "format": CONDITIONED_FORMAT,
-        "version": CONDITIONED_VERSION,
-        "config": model.config.to_dict(),
-        "state_dict": {k: v.detach().cpu() for k, v in model.state_dict().items()},
-        "extra": dict(extra),
-    }
-    with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        torch.save(payload, f)
+    write_payload(path, CONDITIONED_FORMAT, CONDITIONED_VERSION, model, extra)
 
 
 def load_conditioned(path: str | os.PathLike[str]) -> tuple[ViewConditionedNet, dict[str, Any]]:
@@ -144,27 +134,14 @@ def load_conditioned(path: str | os.PathLike[str]) -> tuple[ViewConditionedNet, 
             weights that do not fit the config.
     """
     path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f"checkpoint {path} does not exist or is not a file")
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as e:
-        raise CheckpointError(f"checkpoint {path} is not a readable torch file: {e}") from e
-    if not isinstance(payload, dict) or payload.get("format") != CONDITIONED_FORMAT:
-        raise CheckpointError(
-            f"checkpoint {path} is not a view-conditioned network checkpoint (format tag "
-            f"{payload.get('format') if isinstance(payload, dict) else None!r})"
-        )
-    if payload.get("version") != CONDITIONED_VERSION:
-        raise CheckpointError(
-            f"checkpoint {path} has version {payload.get('version')!r}; "
-            f"this code reads version {CONDITIONED_VERSION}"
-        )
+    payload = read_payload(
+        path, CONDITIONED_FORMAT, CONDITIONED_VERSION, "view-conditioned network"
+    )
     try:
         model = ViewConditionedNet(ConditionedConfig.from_dict(payload["config"]))
         # Shipped weights are bfloat16; the network runs in float32.
         model.load_state_dict({k: v.float() for k, v in payload["state_dict"].items()}, strict=True)
-    except (KeyError, TypeError, ValueError, RuntimeError) as e:
+    except (TypeError, ValueError, RuntimeError) as e:
         reason = " ".join(str(e).split())
         raise CheckpointError(f"checkpoint {path} does not fit its config: {reason}") from e
     return model.eval(), dict(payload["extra"])
