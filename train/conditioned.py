@@ -23,7 +23,6 @@ of the training categories; the unseen categories take no part. ``out_dir`` gets
 
 from __future__ import annotations
 
-import csv
 import logging
 import time
 from dataclasses import asdict, dataclass, field
@@ -37,7 +36,7 @@ from omegaconf import MISSING, DictConfig
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES
 from nbv.config.cli import entry_point, refuse
-from nbv.config.schema import PathsConfig, ProtocolConfig, register, validated
+from nbv.config.schema import PathsConfig, ProtocolConfig, register, schema_of, validated
 from nbv.dataset.records import ModelData
 from nbv.geometry.scores import coverage_gains
 from nbv.models.conditioned import (
@@ -48,8 +47,8 @@ from nbv.models.conditioned import (
 )
 from nbv.policies.conditioned import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
-from nbv.utils.atomic import atomic_path
 from nbv.utils.selection import masked_argmax
+from train.loop import append_csv_row
 from train.losses import LOSSES, batch_loss
 from train.metrics import spearman
 
@@ -211,14 +210,6 @@ def _validation_auc(model, dataset, keys: list[str], settings: ConditionedSettin
     return result
 
 
-def _append_csv(path: Path, rows: list[dict]) -> None:
-    columns = list(dict.fromkeys(k for r in rows for k in r))
-    with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, columns)
-        writer.writeheader()
-        writer.writerows(rows)
-
-
 def run(settings: ConditionedSettings) -> dict:
     """Train; returns the last epoch's metrics and the chosen epoch. Resumes from ``last.pt``
     when it holds the same settings."""
@@ -300,30 +291,24 @@ def run(settings: ConditionedSettings) -> dict:
         opt = optimizer.state_dict()
         opt["state"] = {str(k): v for k, v in opt["state"].items()}
         save_conditioned(last, model, {**extra, "best": best, "optimizer": opt})
-        _append_csv(out / "metrics.csv", rows)
+        append_csv_row(out / "metrics.csv", row)
     return {"last": rows[-1], "best_val_auc": best}
 
 
 @dataclass
-class ConditionedTrainConfig:
-    """The schema of ``conf/train_conditioned.yaml``."""
+class ConditionedTrainConfig(
+    schema_of(
+        ConditionedSettings,
+        "ConditionedFields",
+        exclude=("dataset", "out_dir", "categories", "net"),
+    )
+):
+    """The schema of ``conf/train_conditioned.yaml``: the fields of :class:`ConditionedSettings`
+    (but the training categories and the network's sizes, which keep their defaults), paths as
+    strings, and the shared groups."""
 
     dataset: str = MISSING
     out_dir: str = MISSING
-    seed: int = MISSING
-    epochs: int = MISSING
-    trajectories: int = MISSING
-    steps: int = MISSING
-    candidates: int = MISSING
-    random_step_prob: float = MISSING
-    batch_size: int = MISSING
-    lr: float = MISSING
-    loss: str = MISSING
-    train_points: int = MISSING
-    eval_points: int = MISSING
-    threads: int = MISSING
-    max_models: int = MISSING
-    start_views: list[int] = MISSING
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
     paths: PathsConfig = field(default_factory=PathsConfig)
 

@@ -219,13 +219,13 @@ def _batches(train, batches, settings: TrainSettings, rng, augmentation, epoch: 
     """
     pin = settings.pin_memory and device.type == "cuda"
 
-    def build(i: int, index: np.ndarray, generator) -> tuple:
+    def build(index: np.ndarray, generator) -> tuple:
         tensors = batch_inputs(train, index, settings, generator, augmentation)
         return tuple(a.pin_memory() for a in tensors) if pin else tensors
 
     if settings.loader_workers == 0:
-        for i, index in enumerate(batches):
-            yield build(i, index, rng)
+        for index in batches:
+            yield build(index, rng)
         return
     from concurrent.futures import ThreadPoolExecutor
 
@@ -234,7 +234,7 @@ def _batches(train, batches, settings: TrainSettings, rng, augmentation, epoch: 
         futures = []
         for i, index in enumerate(batches):
             generator = np.random.default_rng([settings.seed, epoch, i])
-            futures.append(pool.submit(build, i, index, generator))
+            futures.append(pool.submit(build, index, generator))
             if len(futures) > ahead:
                 yield futures.pop(0).result()
         for future in futures:
@@ -434,7 +434,7 @@ def _train(settings: TrainSettings) -> dict:
         for name, value in row.items():
             if name != "epoch":
                 writer.add_scalar(name, value, epoch + 1)
-        _append_csv(metrics_file, row)
+        append_csv_row(metrics_file, row)
         opt = optimizer.state_dict()
         opt["state"] = {str(k): v for k, v in opt["state"].items()}
         save_checkpoint(
@@ -454,8 +454,9 @@ def _train(settings: TrainSettings) -> dict:
     }
 
 
-def _append_csv(path: Path, row: dict) -> None:
-    """Append one row, rewriting the header when new columns appear."""
+def append_csv_row(path: Path, row: dict) -> None:
+    """Append one epoch's row (replacing the rows of that epoch and later ones, as a resumed
+    run writes them again), rewriting the header when new columns appear."""
     rows = []
     if path.exists():
         with open(path, newline="") as handle:
