@@ -38,6 +38,10 @@ BACKGROUND_COLOUR = "#ffffff"
 #: The world axes the page can keep up on screen.
 UP_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
+#: Run once plotly has drawn the figure: the page's <html> element gets ``data-plot-ready-ms``,
+#: the milliseconds since navigation start (how tests/test_plan_page.py measures rendering).
+_READY_SCRIPT = "document.documentElement.dataset.plotReadyMs = performance.now().toFixed(0);"
+
 #: Frustum depth as a fraction of the scene's bounding-box diagonal.
 _FRUSTUM_FRACTION = 0.05
 #: Half width and half height of a frustum's far rectangle per unit of depth (a 4:3 image at a
@@ -278,6 +282,9 @@ def write_plan_page(
         default_height="100vh",
         # No MathJax from a CDN (include_mathjax stays False): nothing to fetch.
         config={"displaylogo": False, "responsive": True},
+        post_script=_READY_SCRIPT,
     )
+    # Full window, no scroll bars: the plot's div is 100vh high and the body has no margin.
+    html = html.replace("<head>", "<head><style>html,body{margin:0;overflow:hidden}</style>", 1)
     write_text(Path(path), html)
     log.info("wrote %s (%.1f MB)", path, len(html.encode("utf-8")) / 1e6)
