@@ -6,11 +6,16 @@ Runs both ways::
     blender -b --factory-startup -P blender_scripts/render_depth.py -- --job job.json
 
 Imports only bpy, numpy and the standard library: a cluster's Blender binary has no ``nbv``.
+Tested with Blender 3.4.1 (Debian 12's package), the bpy 4.2.0 and 5.0.1 wheels; where their
+Python API differs the script branches on ``bpy.app.version`` in one place (the flags below the
+imports). Its syntax stays within Python 3.7 so that a Blender down to 2.80 is told its version is
+not supported, instead of failing on a SyntaxError.
 
 The job file (JSON)::
 
     {"width": 640, "height": 480, "fx": 476.0, "fy": 476.0, "cx": 319.5, "cy": 239.5,
      "threads": 0, "device": "CPU" | "GPU" | "AUTO",
+     "blender_versions": [[3, 4, 0], [5, 1, 0]],      # optional: lowest, first unsupported
      "jobs": [{"key": "...", "mesh": "m.npz", "poses": "p.npy", "out": "d.npy"}, ...]}
 
 ``mesh`` is an .npz with ``vertices`` (N, 3) and ``faces`` (F, 3) (integer indices);
@@ -28,9 +33,14 @@ pixel filter 0.01 px wide makes the single sample sit at the pixel centre.
 
 Protocol on stdout, one line each, the only lines starting with ``NBV-``::
 
+    NBV-INFO blender=<x.y.z> python=<x.y.z> numpy=<version|missing> prefix=<sys.prefix>
+             binary=<path|bpy-module>
+                                always the first line (one line, wrapped here)
     NBV-DONE <key>              the key's depth file is complete
     NBV-FAIL <key> <reason>     the key failed; the process goes on with the next job
-    NBV-FATAL <reason>          the scene could not be set up; the process exits with status 2
+    NBV-FATAL <reason>          the scene could not be set up (also: a Blender outside
+                                blender_versions, a Python without numpy, with what to
+                                install); the process exits with status 2
 
 Blender's own output is sent to stderr, so it can never be taken for a protocol line.
 """
@@ -46,7 +56,27 @@ import tempfile
 from typing import TextIO
 
 import bpy
-import numpy as np
+
+try:
+    import numpy as np
+except ImportError as _exc:  # reported by main() as NBV-FATAL, with what to install
+    np = None
+    _NUMPY_ERROR: ImportError | None = _exc
+else:
+    _NUMPY_ERROR = None
+
+# What differs between the Blender versions this script supports, decided here and nowhere else.
+#: bpy.app.version as a tuple, e.g. (3, 4, 1).
+VERSION = tuple(bpy.app.version)
+#: 4.0 derives each polygon's size from the next loop_start and made loop_total read-only;
+#: before 4.0 a polygon whose loop_total is unset is empty and validate() drops it.
+SET_LOOP_TOTAL = VERSION < (4, 0, 0)
+#: 5.0 gives every material a node tree (use_nodes is deprecated); before, it must be switched on.
+ENABLE_MATERIAL_NODES = VERSION < (5, 0, 0)
+#: 3.5 replaced the material's sample_as_light switch by emission_sampling and added the light
+#: tree. Cycles' settings are Python properties there, and setting one that does not exist yet is
+#: silently ignored, so the branch cannot be replaced by try/except.
+EMISSION_SAMPLING = VERSION >= (3, 5, 0)
 
 #: Near and far clipping distances, world units (objects sit in a unit sphere, cameras at ~1).
 CLIP_START = 0.01
@@ -73,8 +103,9 @@ def load_job(path: str) -> dict:
     """Read and validate a job file (see the module docstring); raises JobError naming the key."""
     with open(path) as f:
         spec = json.load(f)
+    # (int, float), not int | float: this must run on the Python of a too old Blender to say so.
     for key in _INTRINSIC_KEYS:
-        if not isinstance(spec.get(key), int | float):
+        if not isinstance(spec.get(key), (int, float)):
             raise JobError(f"{path}: '{key}' must be a number, got {spec.get(key)!r}")
     if int(spec["width"]) <= 0 or int(spec["height"]) <= 0:
         raise JobError(f"{path}: image size must be positive, got {spec['width']}x{spec['height']}")
@@ -86,6 +117,15 @@ def load_job(path: str) -> dict:
         raise JobError(f"{path}: 'threads' must be an integer >= 0, got {spec['threads']!r}")
     if spec["device"] not in ("CPU", "GPU", "AUTO"):
         raise JobError(f"{path}: 'device' must be CPU, GPU or AUTO, got {spec['device']!r}")
+    versions = spec.setdefault("blender_versions", None)
+    if versions is not None and not (
+        isinstance(versions, list)
+        and len(versions) == 2
+        and all(isinstance(v, list) and all(isinstance(n, int) for n in v) for v in versions)
+    ):
+        raise JobError(
+            f"{path}: 'blender_versions' must be [[lowest], [first unsupported]], got {versions!r}"
+        )
     jobs = spec.get("jobs")
     if not isinstance(jobs, list):
         raise JobError(f"{path}: 'jobs' must be a list")
@@ -94,6 +134,50 @@ def load_job(path: str) -> dict:
             if not isinstance(job.get(key), str):
                 raise JobError(f"{path}: jobs[{i}].{key} must be a string, got {job.get(key)!r}")
     return spec
+
+
+def _dotted(version) -> str:
+    return ".".join(str(n) for n in version)
+
+
+def info_line() -> str:
+    """What runs this script: Blender's version, its Python and numpy, where they live."""
+    numpy_version = "missing" if np is None else np.__version__
+    python = ".".join(str(n) for n in sys.version_info[:3])
+    binary = bpy.app.binary_path or "bpy-module"
+    return (
+        f"blender={_dotted(VERSION)} python={python} numpy={numpy_version} "
+        f"prefix={sys.prefix} binary={binary}"
+    )
+
+
+def environment_problem(versions: list | None) -> str | None:
+    """Why this Blender cannot render, or None: a version outside ``versions`` (``[lowest,
+    first unsupported]``, e.g. ``[[3, 4, 0], [5, 1, 0]]``; None = no check), or no numpy."""
+    if versions is not None and not tuple(versions[0]) <= VERSION < tuple(versions[1]):
+        return (
+            f"Blender {_dotted(VERSION)} is not supported: supported are "
+            f"{_dotted(versions[0])} <= version < {_dotted(versions[1])}"
+        )
+    if _NUMPY_ERROR is None:
+        return None
+    python = "Python " + ".".join(str(n) for n in sys.version_info[:3])
+    binary = bpy.app.binary_path
+    if not binary:  # the bpy module: its own environment
+        fix = f"{os.path.join(sys.prefix, 'bin', 'python')} -m pip install numpy"
+    elif os.path.abspath(sys.prefix).startswith(os.path.dirname(os.path.abspath(binary)) + os.sep):
+        # The official tarball: Python lives inside Blender's folder (numpy ships with it).
+        exe = os.path.join(sys.prefix, "bin", "python{}.{}".format(*sys.version_info[:2]))
+        fix = f"{exe} -m ensurepip && {exe} -m pip install numpy"
+    else:  # a distribution's package: Blender uses the system's Python
+        fix = (
+            f"the distribution's numpy for {python}: apt-get install python3-numpy on "
+            "Debian/Ubuntu, dnf install python3-numpy on Fedora/RHEL"
+        )
+    return (
+        f"Blender {_dotted(VERSION)}'s {python} (prefix {sys.prefix}) cannot import numpy "
+        f"({_NUMPY_ERROR}); install it: {fix}"
+    )
 
 
 def _enable_gpu(scene: bpy.types.Scene) -> str | None:
@@ -157,7 +241,8 @@ def configure_scene(spec: dict) -> tuple[bpy.types.Scene, bpy.types.Object, bpy.
     cycles.pixel_filter_type = "BOX"
     cycles.filter_width = 0.01
     cycles.seed = 0
-    cycles.use_light_tree = False
+    if EMISSION_SAMPLING:
+        cycles.use_light_tree = False
     # The depth sits in the colour channels. EXR files are written scene-linear whatever the view
     # transform; a neutral one is set all the same where the colour configuration has it.
     view = scene.view_settings
@@ -207,7 +292,7 @@ def set_intrinsics(scene: bpy.types.Scene, camera: bpy.types.Camera, spec: dict)
 def _depth_material() -> bpy.types.Material:
     """An emission material radiating its own planar camera depth, strength = View Z Depth."""
     material = bpy.data.materials.new("nbv_depth")
-    if bpy.app.version < (5, 0, 0):
+    if ENABLE_MATERIAL_NODES:
         material.use_nodes = True
     nodes, links = material.node_tree.nodes, material.node_tree.links
     nodes.clear()
@@ -218,7 +303,10 @@ def _depth_material() -> bpy.types.Material:
     links.new(camera_data.outputs["View Z Depth"], emission.inputs["Strength"])
     links.new(emission.outputs["Emission"], output.inputs["Surface"])
     # Camera rays see the emission directly; treating 50k triangles as lights would only cost time.
-    material.cycles.emission_sampling = "NONE"
+    if EMISSION_SAMPLING:
+        material.cycles.emission_sampling = "NONE"
+    else:
+        material.cycles.sample_as_light = False
     return material
 
 
@@ -261,6 +349,8 @@ def build_mesh(
     mesh.loops.foreach_set("vertex_index", faces.ravel())
     mesh.polygons.add(len(faces))
     mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, 3, dtype=np.int32))
+    if SET_LOOP_TOTAL:
+        mesh.polygons.foreach_set("loop_total", np.full(len(faces), 3, dtype=np.int32))
     # Also derives the edges. Degenerate or duplicate faces are harmless for depth but may upset
     # Blender, so they are dropped.
     mesh.validate(verbose=False, clean_customdata=False)
@@ -337,11 +427,16 @@ def main(argv: list[str]) -> int:
     """Run a job file; returns the process exit status."""
     args = parse_args(argv)
     proto = _protocol_stream()
+    print(f"NBV-INFO {info_line()}", file=proto, flush=True)
     try:
         spec = load_job(args.job)
-        scene, camera, material = configure_scene(spec)
+        problem = environment_problem(spec["blender_versions"])
+        if problem is None:
+            scene, camera, material = configure_scene(spec)
     except Exception as exc:  # reported to the parent, which fails every key
-        print(f"NBV-FATAL {_one_line(exc)}", file=proto, flush=True)
+        problem = _one_line(exc)
+    if problem is not None:
+        print(f"NBV-FATAL {problem}", file=proto, flush=True)
         return 2
     tmpdir = tempfile.mkdtemp(prefix="nbv-exr-", dir=os.path.dirname(os.path.abspath(args.job)))
     try:

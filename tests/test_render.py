@@ -282,7 +282,8 @@ def test_blender_script_protocol(tmp_path):
     )
     assert run.returncode == 0, run.stderr
     lines = run.stdout.splitlines()
-    assert [line.split()[:2] for line in lines] == [
+    assert lines[0].startswith("NBV-INFO blender=5.0.1 ") and "binary=bpy-module" in lines[0]
+    assert [line.split()[:2] for line in lines[1:]] == [
         ["NBV-FAIL", "missing"],
         ["NBV-FAIL", "corrupt"],
         ["NBV-DONE", "box"],
@@ -301,7 +302,8 @@ def test_blender_script_protocol(tmp_path):
         timeout=120,
     )
     assert run.returncode == 2
-    assert run.stdout.startswith("NBV-FATAL ") and "TPU" in run.stdout
+    info, fatal = run.stdout.splitlines()
+    assert info.startswith("NBV-INFO ") and fatal.startswith("NBV-FATAL ") and "TPU" in fatal
 
 
 @pytest.mark.blender

@@ -20,12 +20,18 @@ from nbv.render.job import DEVICES, RenderError, RenderJob, check_mesh
 
 #: The Blender script, run as a subprocess (it imports bpy, never nbv).
 BLENDER_SCRIPT = Path(__file__).resolve().parents[2] / "blender_scripts" / "render_depth.py"
+#: Blender versions the script supports: (lowest, first unsupported). 3.4 is Debian 12's package,
+#: the oldest tested; 5.0 is the newest bpy wheel for Python 3.11. The script refuses others.
+SUPPORTED_VERSIONS = ((3, 4, 0), (5, 1, 0))
+#: The same range in words, for messages: "3.4.0 <= version < 5.1.0".
+SUPPORTED_TEXT = " <= version < ".join(".".join(map(str, v)) for v in SUPPORTED_VERSIONS)
 
 
 _STDERR_TAIL_LINES = 20
 
 
-def _intrinsics_spec(intrinsics: Intrinsics) -> dict:
+def job_spec(intrinsics: Intrinsics, threads: int, device: str) -> dict:
+    """The settings of a job file shared by every mesh (the script's docstring lists the keys)."""
     return {
         "width": intrinsics.width,
         "height": intrinsics.height,
@@ -33,6 +39,9 @@ def _intrinsics_spec(intrinsics: Intrinsics) -> dict:
         "fy": float(intrinsics.fy),
         "cx": float(intrinsics.cx),
         "cy": float(intrinsics.cy),
+        "threads": int(threads),
+        "device": device,
+        "blender_versions": [list(v) for v in SUPPORTED_VERSIONS],
     }
 
 
@@ -45,7 +54,8 @@ def check_options(threads: int, device: str = "CPU", blender: str | None = None)
         raise FileNotFoundError(f"Blender executable {blender!r} not found")
 
 
-def _blender_command(blender: str | None, job_file: Path) -> list[str]:
+def blender_command(blender: str | None, job_file: Path) -> list[str]:
+    """The command that renders ``job_file``: with this Python's bpy module, or a binary."""
     if blender is None:
         return [sys.executable, str(BLENDER_SCRIPT), "--job", str(job_file)]
     # --python-exit-code: a Python error in the script must not end as a clean exit.
@@ -53,7 +63,8 @@ def _blender_command(blender: str | None, job_file: Path) -> list[str]:
             str(BLENDER_SCRIPT), "--", "--job", str(job_file)]  # fmt: skip
 
 
-def _exit_reason(status: int) -> str:
+def exit_reason(status: int) -> str:
+    """A process's exit status in words ("exit status 1", "killed by signal 9 (SIGKILL)")."""
     if status < 0:
         try:
             return f"killed by signal {-status} ({signal.Signals(-status).name})"
@@ -70,7 +81,9 @@ def _log_tail(log: Path, offset: int, lines: int = _STDERR_TAIL_LINES) -> str:
 
 
 @dataclass(frozen=True)
-class _Pending:
+class StagedJob:
+    """A job's files in the run folder: the script reads ``mesh`` and ``poses``, writes ``out``."""
+
     key: str
     mesh: Path
     poses: Path
@@ -85,7 +98,7 @@ class _Pending:
             path.unlink(missing_ok=True)
 
 
-def _stage(job: RenderJob, index: int, run_dir: Path) -> _Pending:
+def stage_job(job: RenderJob, index: int, run_dir: Path) -> StagedJob:
     """Check a job and write its mesh and Blender-convention poses into run_dir."""
     if not isinstance(job.key, str) or not job.key.strip() or len(job.key.splitlines()) != 1:
         raise ValueError(f"key must be a non-empty one-line string, got {job.key!r}")
@@ -93,7 +106,7 @@ def _stage(job: RenderJob, index: int, run_dir: Path) -> _Pending:
     check_mesh(vertices, faces, poses)
     if not (np.all(np.isfinite(vertices)) and np.all(np.isfinite(poses))):
         raise ValueError("vertices and poses must be finite")
-    pending = _Pending(
+    pending = StagedJob(
         job.key, run_dir / f"{index:06d}_mesh.npz", run_dir / f"{index:06d}_poses.npy",
         run_dir / f"{index:06d}_depth.npy",
     )  # fmt: skip
@@ -123,8 +136,8 @@ def render_blender(
         jobs: meshes with keys and OpenCV camera-to-world poses; keys must be unique.
         intrinsics: the camera, shared by every view.
         workdir: folder for temporary files (created if missing).
-        blender: path of a Blender 4.x/5.x executable; None runs the script with this Python's
-            ``bpy`` module.
+        blender: path of a Blender executable (:data:`SUPPORTED_VERSIONS`; the script refuses
+            others); None runs the script with this Python's ``bpy`` module.
         threads: CPU threads for Cycles; 0 = all cores.
         device: "CPU", "GPU" (fail without one) or "AUTO" (GPU when present).
 
@@ -155,19 +168,19 @@ def _render_blender(
     log = run_dir / "blender.log"
     failed = False
     process: subprocess.Popen | None = None
-    pending: list[_Pending] = []
+    pending: list[StagedJob] = []
     try:
         seen: set[str] = set()
         for index, job in enumerate(jobs):
             try:
                 if job.key in seen:
                     raise ValueError("duplicate key")
-                pending.append(_stage(job, index, run_dir))
+                pending.append(stage_job(job, index, run_dir))
                 seen.add(job.key)
             except (ValueError, TypeError, AttributeError) as exc:
                 key = getattr(job, "key", f"#{index}")
                 yield key, RenderError(f"{key!r}: {exc}")
-        spec = _intrinsics_spec(intrinsics) | {"threads": int(threads), "device": device}
+        spec = job_spec(intrinsics, threads, device)
         run = 0
         while pending:
             job_file = run_dir / f"job_{run:03d}.json"
@@ -176,7 +189,7 @@ def _render_blender(
                 log_file.write(f"=== run {run}: {len(pending)} meshes ===\n".encode())
                 offset = log_file.tell()
                 process = subprocess.Popen(
-                    _blender_command(blender, job_file),
+                    blender_command(blender, job_file),
                     stdout=subprocess.PIPE,
                     stderr=log_file,
                     stdin=subprocess.DEVNULL,
@@ -221,7 +234,7 @@ def _render_blender(
             yield (
                 job.key,
                 RenderError(
-                    f"{job.key!r}: Blender died ({_exit_reason(status)}) while rendering it; "
+                    f"{job.key!r}: Blender died ({exit_reason(status)}) while rendering it; "
                     f"log {log}, last lines:\n{_log_tail(log, offset)}"
                 ),
             )
