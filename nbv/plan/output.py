@@ -1,0 +1,149 @@
+"""What a plan writes into its run folder: ``plan.json``, ``cloud.ply``, ``plan.png`` and
+``plan.html``, each whole or not at all.
+
+``plan.json`` (world frame and units of the input):
+
+* ``chosen``: the planned view indices in order (``next_view`` is the first); ``visited``: the
+  captured ones (indices ``>= n_candidates`` are captures off the viewspace);
+* ``views``: for every chosen view its index, camera centre, and camera-to-world pose in OpenCV
+  axes (x right, y down, z forward) and in Blender / OpenGL axes (x right, y up, -z forward);
+  ``candidates``: the same for every candidate;
+* ``predicted_gains`` (and ``gain_unit``) of the chosen views, when the planner predicts any;
+  ``coverage`` by view against the mesh (mesh input);
+* ``object`` (centre, radius, up, whether estimated), ``timings`` (seconds of each decision and
+  of the policy's stages), ``notes`` and ``settings``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from nbv.geometry.camera import opencv_to_blender
+from nbv.plan.config import PlanSettings
+from nbv.plan.run import VIEWSPACE, PlanResult
+from nbv.policies.episode import auc
+from nbv.utils.atomic import fsync_replace, write_text
+
+log = logging.getLogger(__name__)
+
+
+def _pose_entry(index: int, pose: np.ndarray) -> dict:
+    return {
+        "view": int(index),
+        "position": pose[:3, 3].tolist(),
+        "opencv": pose.tolist(),
+        "blender": opencv_to_blender(pose).tolist(),
+    }
+
+
+def _jsonable(value):
+    if isinstance(value, Path):
+        return str(value)
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if dataclasses.is_dataclass(value):
+        return {f.name: _jsonable(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
+    """The content of ``plan.json`` (see the module docstring)."""
+    world = result.frame.poses_to_world(result.model.views[VIEWSPACE].poses)
+    record = {
+        "input": {"mesh": str(settings.mesh)} if settings.mesh else {
+            "captures": str(settings.captures), "views": result.captured_files},
+        "method": settings.method,
+        "next_view": result.chosen[0],
+        "chosen": result.chosen,
+        "visited": result.visited,
+        "n_candidates": result.n_candidates,
+        "views": [_pose_entry(v, world[v]) for v in result.chosen],
+        "predicted_gains": result.gains,
+        "gain_unit": result.gain_unit or None,
+        "coverage": result.coverage,
+        "auc": auc(np.array(result.coverage)) if result.coverage else None,
+        "object": {
+            "center": result.frame.center.tolist(),
+            "radius": result.frame.radius,
+            "up": result.frame.up,
+            "estimated": result.frame_estimated,
+        },
+        "camera_distance": float(np.linalg.norm(world[0, :3, 3] - result.frame.center)),
+        "timings": {"decisions": result.decisions, "stages": result.stages},
+        "notes": result.notes,
+        "candidates": [_pose_entry(v, world[v]) for v in range(result.n_candidates)],
+        "settings": _jsonable(settings),
+    }  # fmt: skip
+    return record
+
+
+def write_cloud(path: Path, points: np.ndarray) -> None:
+    """The accumulated cloud as a binary PLY (Open3D), world frame."""
+    import open3d as o3d
+
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
+    # Open3D picks the format by the suffix, so the temporary file ends in .ply too.
+    tmp = path.with_name(f".{path.stem}.tmp.ply")
+    try:
+        if not o3d.io.write_point_cloud(str(tmp), cloud):
+            raise OSError(f"{path}: Open3D could not write the cloud")
+        fsync_replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(K, 3) vertices and (F, 3) triangles of the cloud's convex hull (empty for a flat or
+    tiny cloud, which has none)."""
+    from nbv.planning.hull import convex_hull
+
+    try:
+        hull = convex_hull(np.asarray(points, dtype=np.float64))
+    except ValueError:
+        return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
+    used, faces = np.unique(hull.simplices, return_inverse=True)
+    return hull.points[used], faces.reshape(-1, 3).astype(np.int64)
+
+
+def write_outputs(settings: PlanSettings, result: PlanResult) -> list[Path]:
+    """Write the plan's files into ``settings.out_dir``; returns their paths."""
+    out = Path(settings.out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    record = plan_record(settings, result)
+    frame = result.frame
+    cloud = frame.points_to_world(result.cloud)
+    world = frame.poses_to_world(result.model.views[VIEWSPACE].poses)
+    written = []
+    write_cloud(out / "cloud.ply", cloud)
+    written.append(out / "cloud.ply")
+    vertices, faces = hull_mesh(cloud)
+    name = Path(settings.mesh or settings.captures).name
+    title = f"{settings.method} on {name}: next view {result.chosen[0]}, plan {result.chosen}"
+    if settings.picture:
+        from nbv.plan.picture import draw_plan
+
+        draw_plan(out / "plan.png", cloud, vertices, faces, world, result.visited,
+                  result.chosen, title)  # fmt: skip
+        written.append(out / "plan.png")
+    if settings.page:
+        from nbv.plan.page import write_plan_page
+
+        write_plan_page(
+            out / "plan.html", points=cloud.astype(np.float32), hull_vertices=vertices,
+            hull_faces=faces, candidates=world, chosen=result.chosen, visited=result.visited,
+            title=title, up=frame.up.lstrip("-"),
+        )  # fmt: skip
+        written.append(out / "plan.html")
+    # plan.json last: its presence says the run finished.
+    write_text(out / "plan.json", json.dumps(record, indent=1))
+    written.append(out / "plan.json")
+    return written
