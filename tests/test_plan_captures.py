@@ -1,0 +1,239 @@
+"""A plan from capture files equals the evaluator's episode on the same views of a dataset model,
+also for a translated and scaled copy of the captures; bad capture folders are refused naming
+the file, with nothing written."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import pytest
+
+import nbv.dataset
+from nbv.dataset.config import Settings
+from nbv.dataset.generate import generate
+from nbv.geometry.camera import Intrinsics, opencv_to_blender, project
+from nbv.plan.captures import CaptureError, check_rigid, read_captures
+from nbv.plan.config import PlanSettings
+from nbv.plan.run import plan_captures, policy_rng
+from nbv.planning.settings import PlannerSettings, VolumetricSettings
+from nbv.policies.episode import run_episode
+from nbv.policies.registry import METHODS, MethodContext
+
+CAMERA = Intrinsics.centred(64, 48, 48.0)
+EPS = 0.00707
+START = 3
+#: A similarity of the world: captures scaled by SCALE and moved by SHIFT.
+SCALE, SHIFT = 3.0, np.array([1.5, -2.0, 0.7])
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    out = tmp_path_factory.mktemp("dataset")
+    summary = generate(
+        Settings(
+            out_dir=out, counts={"train": 0, "valid": 0, "test": 0, "unseen": 1}, limit=1,
+            intrinsics=CAMERA, n_gt=1000, eps=EPS, points_per_view=200, backend="raycast",
+            progress=False,
+        )
+    )  # fmt: skip
+    assert summary.produced == 1
+    ds = nbv.dataset.open(out)
+    return ds.model(ds.keys()[0], viewspaces=("original",))
+
+
+def episode_views(model, method: str) -> list[int]:
+    """The evaluator's episode: the registry's policy, the plan's generator."""
+    ctx = MethodContext({}, PlannerSettings(), CAMERA, EPS, 10, VolumetricSettings())
+    policy = METHODS[method].build(ctx, policy_rng(0, method))
+    return run_episode(model, "original", START, policy, 10).views
+
+
+def depth_image(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """The sparse planar depth image whose back-projection gives ``points`` again (each stored
+    point is a pixel centre's ray hit): (H, W) float64, inf elsewhere."""
+    uv, z = project(points, CAMERA, pose)
+    u, v = np.rint(uv).astype(int).T
+    assert np.abs(uv - np.stack([u, v], axis=1)).max() < 1e-3
+    depth = np.full((CAMERA.height, CAMERA.width), np.inf)
+    depth[v, u] = z
+    return depth
+
+
+def write_folder(folder: Path, model, views: list[int], kind: str, scale=1.0, shift=None):
+    """The dataset's stored views as a capture folder: PLY clouds or depth NPY images, with
+    their poses (moved by ``scale`` and ``shift``)."""
+    shift = np.zeros(3) if shift is None else shift
+    folder.mkdir(parents=True)
+    record = model.views["original"]
+    entries = []
+    for i, v in enumerate(views):
+        points = record.view_points(v).astype(np.float64)
+        pose = record.poses[v].copy()
+        if kind == "ply":
+            name = f"view_{i}.ply"
+            cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points * scale + shift))
+            assert o3d.io.write_point_cloud(str(folder / name), cloud)
+        else:
+            name = f"view_{i}.npy"
+            np.save(folder / name, depth_image(points, pose) * scale)
+        pose[:3, 3] = pose[:3, 3] * scale + shift
+        entries.append({"file": name, "pose": pose.tolist()})
+    k = CAMERA
+    spec = {"intrinsics": dict(width=k.width, height=k.height, fx=k.fx, fy=k.fy, cx=k.cx,
+                               cy=k.cy), "views": entries}  # fmt: skip
+    (folder / "views.json").write_text(json.dumps(spec))
+    return folder
+
+
+def plan(folder: Path, method: str, center=(0.0, 0.0, 0.0), radius=0.5):
+    settings = PlanSettings(
+        out_dir=folder.parent / "out", method=method, captures=folder, center=center,
+        radius=radius, camera=CAMERA, eps=EPS, points_per_view=0, n_views=10,
+    )  # fmt: skip
+    return plan_captures(settings)
+
+
+@pytest.mark.parametrize("kind", ["ply", "npy"])
+def test_one_shot_plan_from_captures_is_the_episode_of_the_dataset(model, tmp_path, kind):
+    views = episode_views(model, "hull_sco")
+    folder = write_folder(tmp_path / "caps", model, views[:1], kind)
+    result = plan(folder, "hull_sco")
+    assert result.visited == [START]
+    assert result.chosen == views[1:]
+    assert result.gains is not None and len(result.gains) == 9
+
+
+@pytest.mark.parametrize("kind", ["ply", "npy"])
+@pytest.mark.parametrize("captured", [1, 4])
+def test_next_view_from_captures_is_the_episode_of_the_dataset(model, tmp_path, kind, captured):
+    views = episode_views(model, "ig")
+    folder = write_folder(tmp_path / "caps", model, views[:captured], kind)
+    result = plan(folder, "ig")
+    assert result.visited == views[:captured]
+    assert result.chosen == [views[captured]]
+
+
+@pytest.mark.parametrize("kind", ["ply", "npy"])
+@pytest.mark.parametrize("method", ["hull_sco", "ig", "spread"])
+def test_a_translated_and_scaled_copy_of_the_captures_gives_the_same_plan(
+    model, tmp_path, method, kind
+):
+    views = episode_views(model, method)
+    plain = plan(write_folder(tmp_path / "a", model, views[:2], kind), method)
+    moved = write_folder(tmp_path / "b", model, views[:2], kind, SCALE, SHIFT)
+    result = plan(moved, method, center=tuple(SHIFT), radius=0.5 * SCALE)
+    assert result.chosen == plain.chosen
+    if method != "hull_sco":  # a replanning method's next view is the episode's third view
+        assert result.chosen == [views[2]]
+    # The poses are the user's world: the chosen camera sits at SCALE times distance 1.
+    world = result.frame.poses_to_world(result.model.views["plan"].poses)
+    assert np.linalg.norm(world[result.chosen[0], :3, 3] - SHIFT) == pytest.approx(SCALE)
+
+
+def test_blender_axes_give_the_same_plan(model, tmp_path):
+    views = episode_views(model, "ig")
+    folder = write_folder(tmp_path / "caps", model, views[:2], "ply")
+    spec = json.loads((folder / "views.json").read_text())
+    spec["axes"] = "blender"
+    for entry in spec["views"]:
+        entry["pose"] = opencv_to_blender(np.array(entry["pose"])).tolist()
+    (folder / "views.json").write_text(json.dumps(spec))
+    assert plan(folder, "ig").chosen == [views[2]]
+
+
+def test_rigid_pose_check():
+    good = np.eye(4)
+    good[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    assert np.array_equal(check_rigid(good.tolist(), "p"), good)
+    scaled = good.copy()
+    scaled[:3, :3] *= 1.01
+    with pytest.raises(CaptureError, match=r"p: pose is not rigid: R\^T R differs"):
+        check_rigid(scaled, "p")
+    mirror = np.diag([1.0, 1.0, -1.0, 1.0])
+    with pytest.raises(CaptureError, match=r"det R = -1"):
+        check_rigid(mirror, "p")
+    sheared = np.eye(4)
+    sheared[0, 1] = 0.01
+    with pytest.raises(CaptureError, match="not rigid"):
+        check_rigid(sheared, "p")
+    bottom = np.eye(4)
+    bottom[3, 0] = 1.0
+    with pytest.raises(CaptureError, match="last row"):
+        check_rigid(bottom, "p")
+    with pytest.raises(CaptureError, match="4x4"):
+        check_rigid(np.eye(3), "p")
+
+
+def _edit(folder: Path, change) -> None:
+    spec = json.loads((folder / "views.json").read_text())
+    change(spec)
+    (folder / "views.json").write_text(json.dumps(spec))
+
+
+def _bad_cases(model, tmp_path):
+    """(name, folder builder, expected message fragment)."""
+    record = model.views["original"]
+
+    def nan_points(folder):
+        pts = record.view_points(START).astype(np.float64)
+        pts[5] = np.nan
+        cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts))
+        o3d.io.write_point_cloud(str(folder / "view_0.ply"), cloud)
+
+    def not_rigid(folder):
+        _edit(folder, lambda s: s["views"][0]["pose"][0].__setitem__(0, 2.0))
+
+    def no_intrinsics(folder):
+        _edit(folder, lambda s: s.pop("intrinsics"))
+
+    def millimetres(folder):
+        depth = np.load(folder / "view_0.npy")
+        np.save(folder / "view_0.npy", np.where(np.isfinite(depth), depth * 1000, 0).astype(
+            np.uint16))  # fmt: skip
+
+    def empty(folder):
+        np.save(folder / "view_0.npy", np.full((CAMERA.height, CAMERA.width), np.inf))
+
+    def looks_away(folder):
+        def turn(spec):
+            pose = np.array(spec["views"][0]["pose"])
+            pose[:3, :3] = pose[:3, :3] @ np.diag([-1.0, 1.0, -1.0])  # a half turn about y
+            spec["views"][0]["pose"] = pose.tolist()
+
+        _edit(folder, turn)
+
+    return [
+        ("ply", nan_points, "view_0.ply: 1 of 200 points are NaN or infinite"),
+        ("ply", not_rigid, "view_0.ply: pose is not rigid"),
+        ("npy", no_intrinsics, "view_0.npy: a depth image needs intrinsics"),
+        ("npy", millimetres, "view_0.npy: integer depth (e.g. millimetres) without depth_scale"),
+        ("npy", empty, "view_0.npy: empty view"),
+        ("npy", looks_away, "view_0.npy: the camera does not look at the object"),
+    ]
+
+
+@pytest.mark.parametrize("case", range(6))
+def test_bad_captures_are_refused_naming_the_file_and_nothing_is_written(model, tmp_path, case):
+    kind, damage, message = _bad_cases(model, tmp_path)[case]
+    folder = write_folder(tmp_path / "caps", model, [START], kind)
+    damage(folder)
+    with pytest.raises(CaptureError, match=message.replace("(", r"\(").replace(")", r"\)")):
+        plan(folder, "ig")
+    assert not (tmp_path / "out").exists()
+
+
+def test_estimated_object_is_the_bounding_box_of_the_captured_points(model, tmp_path):
+    folder = write_folder(tmp_path / "caps", model, [START, 17], "ply")
+    captures, given = read_captures(folder)
+    assert given is None
+    settings = PlanSettings(out_dir=tmp_path / "out", method="spread", captures=folder,
+                            camera=CAMERA)  # fmt: skip
+    result = plan_captures(settings)
+    points = np.concatenate([c.points for c in captures])
+    center = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    np.testing.assert_allclose(result.frame.center, center)
+    assert result.frame.radius == pytest.approx(np.linalg.norm(points - center, axis=1).max())
+    assert result.frame_estimated
