@@ -112,8 +112,10 @@ def test_figure_draws_every_part_with_the_chosen_views_numbered_in_order():
     order = fig.data[8]
     assert list(order.text) == ["1", "2", "3"]
     np.testing.assert_array_equal(order.x, s["candidates"][[7, 2, 30], 0, 3])
-    assert fig.layout.scene.camera.up.y == 1 and fig.layout.scene.camera.up.x == 0
+    assert fig.layout.scene.camera.up.to_plotly_json() == {"x": 0, "y": 1, "z": 0}
     assert fig.layout.title.text == "box"
+    down = build_plan_figure(**s, chosen=[7], visited=[], title="z", up="-z")
+    assert down.layout.scene.camera.up.to_plotly_json() == {"x": 0, "y": 0, "z": -1}
 
 
 @pytest.mark.parametrize(
@@ -128,7 +130,7 @@ def test_figure_draws_every_part_with_the_chosen_views_numbered_in_order():
         (dict(chosen=[1, 33]), "chosen: view index 33 is out of range; allowed 0..32"),
         (dict(chosen=[1, 1]), "chosen: repeats a view"),
         (dict(visited=[-1]), "visited: view index -1 is out of range"),
-        (dict(up="w"), "up: 'w' is not one of ['x', 'y', 'z']"),
+        (dict(up="w"), "up: 'w' is not one of ['-x', '-y', '-z', 'x', 'y', 'z']"),
     ],
 )
 def test_bad_input_is_refused_by_name_and_nothing_is_written(tmp_path, change, message):

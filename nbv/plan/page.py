@@ -35,8 +35,12 @@ VISITED_COLOUR = "#9467bd"
 CHOSEN_COLOUR = "#ff7f0e"
 BACKGROUND_COLOUR = "#ffffff"
 
-#: The world axes the page can keep up on screen.
-UP_AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+#: The world axes the page can keep up on screen ("-y": the world's -y points up).
+UP_AXES = {
+    f"{sign}{axis}": tuple(float(s) if i == k else 0.0 for i in range(3))
+    for k, axis in enumerate("xyz")
+    for sign, s in (("", 1), ("-", -1))
+}
 
 #: Run once plotly has drawn the figure: the page's <html> element gets ``data-plot-ready-ms``,
 #: the milliseconds since navigation start (how tests/test_plan_page.py measures rendering).
@@ -143,7 +147,8 @@ def build_plan_figure(
         visited: views already captured (indices into ``candidates``). A view both visited and
             chosen is drawn as chosen.
         title: the page's title.
-        up: the world axis kept up on screen, one of ``UP_AXES`` ("x", "y", "z").
+        up: the world axis kept up on screen, one of ``UP_AXES`` ("x", "y", "z", "-x", "-y",
+            "-z").
         max_points: cap on drawn cloud points.
 
     Traces, in order (names are the legend entries): "cloud", "hull", "candidates",
