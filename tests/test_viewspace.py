@@ -15,6 +15,13 @@ from nbv.geometry.viewspace import (
     permuted_viewspace,
     save_viewspace,
 )
+from nbv.geometry.viewspace_generators import (
+    UP_AXES,
+    ViewspaceSpec,
+    fibonacci_sphere,
+    rings,
+    up_rotation,
+)
 
 REFERENCE = (
     Path(__file__).resolve().parents[2] / "shared" / "reference" / "viewspace_original_33.txt"
@@ -112,3 +119,108 @@ def test_missing_and_empty_files_refused(tmp_path):
         load_viewspace(tmp_path / "empty.txt")
     with pytest.raises(ViewspaceError, match="no such viewspace"):
         get_viewspace("sideways")
+
+
+# --- generated viewspaces for real rigs (nbv.geometry.viewspace_generators) ---
+
+
+def _min_gap(dirs: np.ndarray) -> float:
+    gaps = angular_distances(dirs, dirs) + np.diag(np.full(len(dirs), np.inf))
+    return float(gaps.min())
+
+
+@pytest.mark.parametrize("n", [2, 7, 33, 100])
+@pytest.mark.parametrize("hemisphere", [False, True])
+def test_fibonacci_lattice_counts_radii_no_duplicates(n, hemisphere):
+    dirs = fibonacci_sphere(n, hemisphere)
+    assert dirs.shape == (n, 3) and dirs.dtype == np.float64
+    np.testing.assert_allclose(np.linalg.norm(dirs, axis=1), 1.0, atol=1e-15)
+    assert _min_gap(dirs) > 1.0  # degrees: no two alike
+    height = dirs[:, 1]
+    if hemisphere:
+        np.testing.assert_allclose(height, 1 - (np.arange(n) + 0.5) / n, atol=1e-15)
+        assert height.min() > 0
+    else:
+        np.testing.assert_allclose(height, 1 - (2 * np.arange(n) + 1) / n, atol=1e-15)
+        assert abs(height.mean()) < 1e-12  # even in height: the lattice is area-uniform
+
+
+def test_fibonacci_sphere_is_even_its_spacing_close_to_the_ideal():
+    # n equal caps cover the sphere: the nearest-neighbour angle of an even set is about
+    # sqrt(4 pi / n) radians; the lattice's smallest gap is at least 70 % of it.
+    n = 200
+    ideal = np.rad2deg(np.sqrt(4 * np.pi / n))
+    assert _min_gap(fibonacci_sphere(n)) > 0.7 * ideal
+
+
+def test_rings_reproduce_the_original_viewspace_row_for_row():
+    np.testing.assert_allclose(rings([90, 60, 30, 0, -30], 8), original_viewspace(), atol=1e-15)
+
+
+def test_rings_counts_elevations_and_per_ring_lists():
+    dirs = rings([45, 10, -20], [6, 12, 3])
+    assert dirs.shape == (21, 3)
+    np.testing.assert_allclose(elevation(dirs), [45] * 6 + [10] * 12 + [-20] * 3, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(dirs, axis=1), 1.0, atol=1e-15)
+    # Azimuths of a ring of 12: 0, 30, ..., 330 degrees from +z towards +x.
+    az = np.rad2deg(np.arctan2(dirs[6:18, 0], dirs[6:18, 2])) % 360
+    np.testing.assert_allclose(az, np.arange(0, 360, 30), atol=1e-9)
+    assert _min_gap(dirs) > 1.0
+
+
+def test_a_pole_ring_is_one_view():
+    np.testing.assert_allclose(rings([-90, 0], 4), [[0, -1, 0], [0, 0, 1], [1, 0, 0], [0, 0, -1],
+                                                    [-1, 0, 0]], atol=1e-15)  # fmt: skip
+
+
+@pytest.mark.parametrize("up", list(UP_AXES))
+def test_up_rotation_is_a_rotation_taking_y_to_up(up):
+    r = up_rotation(up)
+    np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-15)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    np.testing.assert_allclose(r @ [0, 1, 0], UP_AXES[up], atol=1e-15)
+    # A hemisphere about that axis lies on its side of the plane through the centre.
+    assert (fibonacci_sphere(50, True, up) @ np.array(UP_AXES[up])).min() > 0
+
+
+def test_z_up_turns_the_original_viewspace_pole_to_z():
+    dirs = ViewspaceSpec(kind="original", up="z").directions()
+    np.testing.assert_allclose(dirs[0], [0, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(dirs @ up_rotation("z"), original_viewspace(), atol=1e-15)
+
+
+def test_spec_directions_of_each_kind(tmp_path):
+    path = tmp_path / "vs.txt"
+    save_viewspace(path, 3.0 * original_viewspace()[:5])
+    assert np.array_equal(ViewspaceSpec().directions(), original_viewspace())
+    np.testing.assert_allclose(ViewspaceSpec(kind="file", file=str(path)).directions(),
+                               original_viewspace()[:5], atol=1e-15)  # fmt: skip
+    assert ViewspaceSpec(kind="sphere", n=12).directions().shape == (12, 3)
+    assert ViewspaceSpec(kind="hemisphere", n=12).directions()[:, 1].min() > 0
+    assert ViewspaceSpec(kind="rings", elevations=(30.0,), per_ring=5).directions().shape == (5, 3)
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        (dict(kind="ball"), "viewspace.kind='ball': must be one of original, permuted, file"),
+        (dict(kind="file"), "viewspace.kind=file needs viewspace.file="),
+        (dict(kind="sphere", n=1), "viewspace.n=1: must be an integer >= 2"),
+        (dict(kind="rings", elevations=(95.0,)), r"viewspace.elevations=\[95.0\]: must be degrees"),
+        (dict(kind="rings", elevations=()), "viewspace.elevations is empty"),
+        (dict(kind="rings", elevations=(10.0, 10.0)), "an elevation is given twice"),
+        (dict(kind="rings", elevations=(10.0, 20.0), per_ring=(4, 5, 6)), "one per elevation"),
+        (dict(kind="rings", per_ring=0), "counts must be integers >= 1"),
+        (dict(up="w"), "viewspace.up='w': must be one of x, y, z, -x, -y, -z"),
+    ],
+)
+def test_invalid_specs_get_one_message_naming_the_key(spec, message):
+    with pytest.raises(ViewspaceError, match=message):
+        ViewspaceSpec(**spec)
+
+
+def test_a_file_with_two_views_in_one_direction_is_refused(tmp_path):
+    path = tmp_path / "vs.txt"
+    path.write_text("0 0 1\n1 0 0\n0 0 2\n")
+    with pytest.raises(ViewspaceError, match="duplicate of the direction on line 1"):
+        ViewspaceSpec(kind="file", file=str(path)).directions()
