@@ -24,7 +24,7 @@ from nbv.utils.atomic import write_text
 log = logging.getLogger(__name__)
 
 #: At most this many cloud points go into the page (about 0.3 MB of base64 at float32); the
-#: embedded plotly.js is about 4.7 MB, so the page stays well under 10 MB.
+#: embedded plotly.js is about 4.8 MB, so the page stays well under 10 MB.
 MAX_PAGE_POINTS = 20_000
 
 # Fixed colours, so a screenshot can be checked for what was drawn (tests/test_plan_page.py).
