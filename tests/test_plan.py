@@ -196,3 +196,30 @@ def test_a_bad_capture_folder_is_refused_in_one_line_and_leaves_nothing(episode,
         .startswith(f"nbv.plan: {folder / 'view_01.npy'}: pose is not rigid")
     )
     assert not (tmp_path / "refused").exists()
+
+
+@pytest.mark.parametrize("method", ["hull_sco", "ig"])
+def test_the_bench_decision_is_the_plan_from_the_same_capture_file(box, tmp_path, method):
+    from nbv.assets.meshes import load_mesh, normalise
+    from nbv.bench.plan import decide
+    from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
+    from nbv.plan.run import plan_captures
+    from nbv.planning.settings import PlannerSettings
+    from nbv.render.raycast import render_raycast
+
+    camera = Intrinsics.centred(160, 120, 119.0)
+    mesh, _, _ = normalise(load_mesh(box))
+    poses = viewspace_poses(original_viewspace())
+    depth = render_raycast(mesh.vertices, mesh.faces, poses[[5]], camera)[0]
+    points = backproject(depth, camera, poses[5])
+    bench = decide(method, 5, points, poses, camera, PlannerSettings())
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
+    (tmp_path / "caps").mkdir()
+    assert o3d.io.write_point_cloud(str(tmp_path / "caps" / "v.ply"), cloud)
+    spec = {"views": [{"file": "v.ply", "pose": poses[5].tolist()}]}
+    (tmp_path / "caps" / "views.json").write_text(json.dumps(spec))
+    settings = PlanSettings(out_dir=tmp_path / "out", method=method, captures=tmp_path / "caps",
+                            center=(0.0, 0.0, 0.0), radius=0.5, camera=camera,
+                            points_per_view=0)  # fmt: skip
+    planned = plan_captures(settings).chosen
+    assert planned == (bench if isinstance(bench, list) else [bench])

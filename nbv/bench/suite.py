@@ -21,6 +21,7 @@ from scipy.spatial import ConvexHull, cKDTree
 
 from nbv.assets.meshes import Mesh, normalise, sample_surface
 from nbv.assets.synthetic import build, catalogue
+from nbv.bench.plan import capture_rows
 from nbv.bench.timing import best_time
 from nbv.bench.volumetric import decision_row
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
@@ -260,6 +261,7 @@ def run(
     # The views as the dataset stores them (points_per_view = 2048).
     stored = [v[rng_pick(len(v), 2048, seed + i)] for i, v in enumerate(views)]
     rows.append(decision_row(stored, scene["poses"], scene["intrinsics"]))
+    rows += capture_rows(views, scene["poses"], scene["intrinsics"])
     if network:
         from nbv.bench.network import episode_seconds
 

@@ -281,6 +281,37 @@ def load_capture_frame(settings: PlanSettings) -> tuple[list[Capture], ObjectFra
     return captures, frame, estimated
 
 
+def capture_state(
+    poses: np.ndarray, parts: list[np.ndarray], order: list[int], points_per_view: int = 0
+) -> EpisodeState:
+    """The state a policy reads after the captured views ``order``, normalised frame.
+
+    Args:
+        poses: (V', 4, 4) camera-to-world of the candidates (and any extra captured views).
+        parts: V' arrays (N_v, 3) of each view's points; empty for views not captured.
+        order: the captured views in order.
+        points_per_view: the subsampling the points were kept with (0 = all), for the record.
+
+    Returns:
+        An :class:`EpisodeState` over a one-viewspace record without ground truth (its
+        coverage bits and hull vertices are empty: only the oracle would read them).
+    """
+    offsets = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
+    view = ViewData(
+        poses=poses, points=np.concatenate(parts).astype(np.float32), offsets=offsets,
+        coverage=np.zeros((len(poses), 1), np.uint8), hull_points=np.zeros((0, 3), np.float32),
+        hull_offsets=np.zeros(len(poses) + 1, dtype=np.int64), points_per_view=points_per_view,
+    )  # fmt: skip
+    model = ModelData(
+        key="captures", category="", split="", source="captures", source_path="",
+        center=np.zeros(3), scale=1.0, seed=0, gt_points=np.zeros((0, 3), np.float32),
+        gt_hull_volume=float("nan"), views={VIEWSPACE: view},
+    )  # fmt: skip
+    state = EpisodeState(model, VIEWSPACE, np.zeros(len(poses), dtype=bool), list(order))
+    state.view_state[list(order)] = True
+    return state
+
+
 def plan_captures(settings: PlanSettings) -> PlanResult:
     """The next view (or a one-shot planner's remaining plan) from a folder of captures."""
     captures, frame, estimated = load_capture_frame(settings)
@@ -311,21 +342,8 @@ def plan_captures(settings: PlanSettings) -> PlanResult:
         pts = _subsample(frame.points_to_normalised(c.points), settings.points_per_view, rng)
         parts[index[i]] = pts.astype(np.float32)
         poses[index[i]] = captured_poses[i]
-    offsets = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
-    empty = np.zeros(len(poses) + 1, dtype=np.int64)
-    view = ViewData(
-        poses=poses, points=np.concatenate(parts), offsets=offsets,
-        coverage=np.zeros((len(poses), 1), np.uint8), hull_points=np.zeros((0, 3), np.float32),
-        hull_offsets=empty, points_per_view=settings.points_per_view,
-    )  # fmt: skip
-    model = ModelData(
-        key="captures", category="", split="", source="captures",
-        source_path=str(settings.captures), center=frame.center, scale=frame.scale,
-        seed=settings.seed, gt_points=np.zeros((0, 3), np.float32), gt_hull_volume=float("nan"),
-        views={VIEWSPACE: view},
-    )  # fmt: skip
-    state = EpisodeState(model, VIEWSPACE, np.zeros(len(poses), dtype=bool), list(index))
-    state.view_state[index] = True
+    state = capture_state(poses, parts, index, settings.points_per_view)
+    state.model.source_path = str(settings.captures)
     ctx = method_context(settings, settings.camera, n)
     policy = METHODS[settings.method].build(ctx, policy_rng(settings.seed, settings.method))
     t0 = time.perf_counter()
@@ -341,7 +359,7 @@ def plan_captures(settings: PlanSettings) -> PlanResult:
     if extras:
         notes.append(f"{len(extras)} captures off the viewspace joined the plan as extra views")
     return PlanResult(
-        frame=frame, model=model, n_candidates=n, visited=index, chosen=chosen, gains=gains,
+        frame=frame, model=state.model, n_candidates=n, visited=index, chosen=chosen, gains=gains,
         gain_unit=unit, decisions=[seconds], stages=_stage_seconds(policy),
         captured_files=files, notes=notes, frame_estimated=estimated,
     )  # fmt: skip

@@ -1,0 +1,85 @@
+"""Benchmark rows of ``python -m nbv.plan``'s next-view decision from one 50k-point capture.
+
+The capture is one full-resolution view of the benchmark's chair (640 x 480; an even 50,000 of
+its points, or all of them when it has fewer), planned on the original viewspace with every point
+kept (``points_per_view=0``), as :func:`nbv.plan.run.plan_captures` does after reading the files:
+the capture moved into the planners' frame, the state built, a fresh policy called (for ``ig``
+the candidates' rays traced too, as in a run's first decision). The references: for ``hull_sco``
+the same plan with the ray-cast view simulation (the planner's exact slow path), for ``ig`` the
+same decision in plain numpy (:func:`nbv.bench.volumetric.plain_decision`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from nbv.bench.timing import best_time
+from nbv.bench.volumetric import plain_decision
+from nbv.dataset.records import ModelData, ViewData
+from nbv.planning.settings import PlannerSettings, VolumetricSettings
+from nbv.policies.episode import EpisodeState
+from nbv.policies.registry import METHODS, MethodContext
+from nbv.utils.seeding import named_rng
+
+#: Points of the benchmark's capture.
+CAPTURE_POINTS = 50_000
+#: The issue's target for one decision, seconds.
+TARGET = 0.100
+
+
+def capture(views: list[np.ndarray]) -> tuple[int, np.ndarray]:
+    """The view with the most points and an even ``CAPTURE_POINTS`` of them: (view, (N, 3))."""
+    v = int(np.argmax([len(p) for p in views]))
+    points = views[v]
+    if len(points) > CAPTURE_POINTS:
+        points = points[np.linspace(0, len(points) - 1, CAPTURE_POINTS).astype(np.int64)]
+    return v, points
+
+
+def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrinsics,
+           hull: PlannerSettings) -> int | list[int]:  # fmt: skip
+    """One decision of ``method`` after the capture ``(view, points)``, as nbv.plan makes it
+    (the chair is normalised already: its frame is the planners'). The state is built as
+    :func:`nbv.plan.run.capture_state` builds it (the bench may not import nbv.plan: the two
+    entry points are independent layers)."""
+    offsets = np.zeros(len(poses) + 1, dtype=np.int64)
+    offsets[view + 1 :] = len(points)
+    record = ViewData(poses, points.astype(np.float32), offsets, np.zeros((len(poses), 1),
+                      np.uint8), np.zeros((0, 3), np.float32), np.zeros_like(offsets))  # fmt: skip
+    model = ModelData("capture", "", "", "bench", "", np.zeros(3), 1.0, 0,
+                      np.zeros((0, 3), np.float32), float("nan"), {"plan": record})  # fmt: skip
+    state = EpisodeState(model, "plan", np.arange(len(poses)) == view, [view])
+    ctx = MethodContext({}, hull, intrinsics, 0.00707, 10, VolumetricSettings())
+    # The generator of nbv.plan.run.policy_rng.
+    return METHODS[method].build(ctx, named_rng(0, "plan", method))(state)
+
+
+def capture_rows(views: list[np.ndarray], poses: np.ndarray, intrinsics) -> list[dict]:
+    """The rows: ``hull_sco`` and ``ig`` deciding from a 50k-point capture."""
+    view, points = capture(views)
+    analytic, raycast = PlannerSettings(), PlannerSettings(simulation="raycast")
+    rows = []
+
+    def hull_ours():
+        return decide("hull_sco", view, points, poses, intrinsics, analytic)
+
+    def hull_ref():
+        return decide("hull_sco", view, points, poses, intrinsics, raycast)
+
+    def ig_ours():
+        return decide("ig", view, points, poses, intrinsics, analytic)
+
+    def ig_ref():
+        return plain_decision([(view, points)], poses, intrinsics, VolumetricSettings())
+
+    for name, ours, ref, note in (
+        ("hull_sco", hull_ours, hull_ref, "analytic vs ray-cast view simulation"),
+        ("ig", ig_ours, ig_ref, "compiled vs plain numpy decision"),
+    ):
+        t_ours = best_time(ours, repeat=3, budget=10)
+        t_ref = best_time(ref, repeat=2, budget=20)
+        rows.append(dict(
+            name=f"nbv.plan {name} decision, {len(points) // 1000}k-point capture",
+            ours=t_ours, reference=t_ref, ratio=t_ref / t_ours, target=TARGET, note=note,
+        ))  # fmt: skip
+    return rows
