@@ -243,3 +243,21 @@ def test_a_refused_export_says_why_in_one_line_and_leaves_no_folder(tmp_path, ar
     assert done.returncode == 2, done.stderr
     assert done.stderr.strip().splitlines()[-1].startswith(line), done.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_an_export_is_not_written_over_another(full_run, tmp_path):
+    data = json.loads((full_run / "results.json").read_text())["datasets"][0]["path"]
+    first = cli(tmp_path, f"data_dir={data}", "limit=1", "out_dir=export", "progress=false")
+    assert first.returncode == 0, first.stderr
+    before = {p: p.read_bytes() for p in (tmp_path / "export").rglob("*") if p.is_file()}
+    again = cli(tmp_path, f"data_dir={data}", "limit=2", "out_dir=export", "progress=false")
+    assert again.returncode == 2
+    assert again.stderr.strip().splitlines()[-1] == (
+        "nbv.export: out_dir='export': holds an earlier export (manifest.json); give another "
+        "out_dir or remove that one"
+    )
+    after = {p: p.read_bytes() for p in (tmp_path / "export").rglob("*") if p.is_file()}
+    log = tmp_path / "export" / "export.log"
+    assert after.keys() == before.keys() and log in after and len(before) > 30
+    assert all(after[p] == before[p] for p in before if p != log)
+    assert b"holds an earlier export" in after[log]  # the job log keeps the refusal

@@ -21,11 +21,12 @@ log = logging.getLogger("nbv.export")
 
 @hydra.main(config_path="../../conf", config_name="export", version_base="1.3")
 def main(cfg: DictConfig) -> None:
-    from nbv.export.pcnbv_format import export
+    from nbv.export.pcnbv_format import check_destination, export
     from nbv.export.sources import from_dataset, from_eval_run
 
     try:
         s = settings_from_config(cfg)
+        check_destination(s.out_dir)
         if s.eval_run is not None:
             sources, selections = from_eval_run(s.eval_run, s.viewspaces, s.methods, s.limit)
             origin = {"eval_run": str(s.eval_run)}

@@ -61,6 +61,23 @@ MANIFEST = "manifest.json"
 DATASET_ONLY = "dataset"
 
 
+class ExportError(ValueError):
+    """A source or destination that cannot be exported to; the message names the file."""
+
+
+def check_destination(out: Path) -> None:
+    """Refuse an export folder that already holds an export: files of two exports must not mix.
+
+    Raises:
+        ExportError: ``out/manifest.json`` exists.
+    """
+    if (Path(out) / MANIFEST).exists():
+        raise ExportError(
+            f"out_dir={str(out)!r}: holds an earlier export ({MANIFEST}); give another out_dir "
+            "or remove that one"
+        )
+
+
 @dataclass(frozen=True)
 class Selection:
     """One evaluation episode to export.

@@ -11,14 +11,12 @@ import json
 from pathlib import Path
 
 import nbv.dataset
-from nbv.export.pcnbv_format import DATASET_ONLY, Selection, Source
+from nbv.export.pcnbv_format import DATASET_ONLY, ExportError, Selection, Source
+
+__all__ = ["ExportError", "from_dataset", "from_eval_run"]
 
 #: The keys of an evaluation's results.json that the export reads.
 RESULT_KEYS = ("datasets", "episodes")
-
-
-class ExportError(ValueError):
-    """A source that cannot be exported; the message names the file."""
 
 
 def _open(path: Path, where: str) -> nbv.dataset.Dataset:
