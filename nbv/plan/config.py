@@ -124,11 +124,12 @@ class PlanSettings:
         for key, path in (("mesh", self.mesh), ("captures", self.captures)):
             if path is not None and not Path(path).exists():
                 raise ConfigError(f"{key}={str(path)!r}: no such file or folder")
-        if self.captures_out is not None and Path(self.captures_out).exists():
-            if any(Path(self.captures_out).iterdir()):
-                raise ConfigError(
-                    f"captures_out={str(self.captures_out)!r}: exists and is not empty"
-                )
+        saved = self.captures_out or Path(self.out_dir) / "captures"
+        if self.save_captures and saved.exists() and any(saved.iterdir()):
+            raise ConfigError(
+                f"captures_out={str(saved)!r}: exists and is not empty; saved captures go to a "
+                "new folder (another out_dir or captures_out)"
+            )
 
 
 #: ``hull:`` and ``ig:``: the fields of the planners' settings, each null (= the settings'

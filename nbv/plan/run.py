@@ -156,6 +156,27 @@ def predicted_gains(policy, state: EpisodeState, chosen: list[int]) -> tuple[lis
     return None, ""
 
 
+class GainRecorder:
+    """A policy that also keeps the planner's predicted gain of every view it picks
+    (:func:`predicted_gains`, None where it predicts none) and the seconds of each of its own
+    decisions (without the gains' reading)."""
+
+    def __init__(self, policy) -> None:
+        self.policy = policy
+        self.gains: list[float | None] = []
+        self.unit = ""
+        self.seconds: list[float] = []
+
+    def __call__(self, state: EpisodeState) -> int | list[int]:
+        t0 = time.perf_counter()
+        choice = self.policy(state)
+        self.seconds.append(time.perf_counter() - t0)
+        chosen = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
+        gains, self.unit = predicted_gains(self.policy, state, chosen)
+        self.gains += gains if gains is not None else [None] * len(chosen)
+        return choice
+
+
 def _stage_seconds(policy) -> dict[str, float]:
     return {k: float(np.sum(v)) for k, v in getattr(policy, "timings", {}).items()}
 
@@ -202,21 +223,22 @@ def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
     )  # fmt: skip
     ctx = method_context(settings, settings.camera, len(poses))
     policy = METHODS[settings.method].build(ctx, policy_rng(settings.seed, settings.method))
-    episode = run_episode(model, VIEWSPACE, settings.start_view, policy, settings.n_views)
-    result = PlanResult(
+    recorder = GainRecorder(policy)
+    episode = run_episode(model, VIEWSPACE, settings.start_view, recorder, settings.n_views)
+    gains = recorder.gains[: len(episode.views) - 1]
+    return PlanResult(
         frame=frame,
         model=model,
         n_candidates=len(poses),
         visited=[settings.start_view],
         chosen=episode.views[1:],
+        gains=None if any(g is None for g in gains) else gains,
+        gain_unit=recorder.unit,
         coverage=[float(c) for c in episode.coverage],
-        decisions=episode.times,
+        decisions=recorder.seconds,
         stages=_stage_seconds(policy),
         notes=list(getattr(policy, "notes", [])) + episode.notes,
-    )
-    if getattr(policy, "last_gains", None) and len(policy.last_gains) == len(result.chosen):
-        result.gains, result.gain_unit = policy.last_gains, "hull samples newly covered"
-    return result, depth
+    ), depth
 
 
 def save_episode_captures(settings: PlanSettings, result: PlanResult, depth: np.ndarray) -> Path:
