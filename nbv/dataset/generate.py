@@ -39,6 +39,7 @@ from nbv.geometry.viewspace import get_viewspace
 from nbv.render.backends import render
 from nbv.render.job import RenderError, RenderJob
 from nbv.render.noise import noisy_depth
+from nbv.render.preflight import check_blender
 from nbv.utils.seeding import named_rng
 
 log = logging.getLogger(__name__)
@@ -256,6 +257,10 @@ def generate(settings: Settings) -> Summary:
     mine = models[settings.shard :: settings.num_shards]
     if settings.limit is not None:
         mine = mine[: settings.limit]
+    if settings.backend == "blender" and settings.blender is not None and mine:
+        # A cluster's binary is tried once on a tiny scene, before anything is written: without
+        # numpy, of another version or rendering nothing it would fail every model one by one.
+        check_blender(settings.blender, settings.threads, settings.device)
     out_dir = Path(settings.out_dir)
     name = shard_name(settings.shard, settings.num_shards)
     shard_file = out_dir / name
