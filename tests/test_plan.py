@@ -223,3 +223,20 @@ def test_the_bench_decision_is_the_plan_from_the_same_capture_file(box, tmp_path
                             points_per_view=0)  # fmt: skip
     planned = plan_captures(settings).chosen
     assert planned == (bench if isinstance(bench, list) else [bench])
+
+
+def test_the_example_mesh_is_the_first_synthetic_model_of_its_category(tmp_path):
+    from nbv.assets.meshes import load_mesh
+    from nbv.assets.synthetic import build, catalogue
+    from nbv.plan.example import write_example
+
+    path = write_example(tmp_path / "chair.obj", "chair", seed=0)
+    entry = next(e for e in catalogue() if e.category == "chair")
+    vertices, faces = build(entry, 0)
+    mesh = load_mesh(path)
+    np.testing.assert_allclose(mesh.vertices, vertices, atol=1e-6)  # OBJ text, 8 decimals
+    np.testing.assert_array_equal(mesh.faces, faces)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["chair.obj"]
+    with pytest.raises(ValueError, match="--category 'chairs': allowed: airplane, bed"):
+        write_example(tmp_path / "x.obj", "chairs")
+    assert not (tmp_path / "x.obj").exists()

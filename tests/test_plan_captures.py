@@ -15,6 +15,7 @@ import nbv.dataset
 from nbv.dataset.config import Settings
 from nbv.dataset.generate import generate
 from nbv.geometry.camera import Intrinsics, opencv_to_blender, project
+from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.plan.captures import CaptureError, check_rigid, read_captures
 from nbv.plan.config import PlanSettings
 from nbv.plan.run import plan_captures, policy_rng
@@ -237,3 +238,73 @@ def test_estimated_object_is_the_bounding_box_of_the_captured_points(model, tmp_
     np.testing.assert_allclose(result.frame.center, center)
     assert result.frame.radius == pytest.approx(np.linalg.norm(points - center, axis=1).max())
     assert result.frame_estimated
+
+
+def test_a_16_bit_png_with_depth_scale_reads_as_the_float_depth_quantised(model, tmp_path):
+    from PIL import Image
+
+    folder = write_folder(tmp_path / "caps", model, [START], "npy")
+    depth = np.load(folder / "view_0.npy")
+    millimetres = np.where(np.isfinite(depth), np.rint(depth * 1000), 0).astype(np.uint16)
+    Image.fromarray(millimetres).save(folder / "view_0.png")
+    _edit(folder, lambda s: (s["views"][0].update(file="view_0.png"), s.update(depth_scale=0.001)))
+    (png,), _ = read_captures(folder)
+    assert png.file.name == "view_0.png" and len(png.points) == 200
+    stored = model.views["original"].view_points(START)
+    # Half a millimetre of depth moves a point at most 0.5 mm times the ray's length (< 1.5).
+    assert np.abs(png.points - stored).max() <= 0.0005 * 1.5
+
+
+def test_a_pcd_view_reads_the_stored_points(model, tmp_path):
+    folder = write_folder(tmp_path / "caps", model, [START], "ply")
+    cloud = o3d.io.read_point_cloud(str(folder / "view_0.ply"))
+    assert o3d.io.write_point_cloud(str(folder / "view_0.pcd"), cloud)
+    _edit(folder, lambda s: s["views"][0].update(file="view_0.pcd"))
+    (pcd,), _ = read_captures(folder)
+    np.testing.assert_array_equal(pcd.points, model.views["original"].view_points(START))
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda f, s: s["views"][0].update(file="view_9.npy"), "view_9.npy: no such file"),
+        (lambda f, s: s["views"][0].update(file="view_0.jpg"), "view_0.jpg: unsupported view file"),
+        (lambda f, s: s.update(axes="ros"), "axes='ros'; allowed: opencv, blender"),
+        (lambda f, s: s.update(colour=1), r"unknown keys \['colour'\]"),
+        (lambda f, s: s["intrinsics"].update(width=65), "depth is 64 x 48, the intrinsics say 65"),
+        (lambda f, s: s.update(depth_scale=-1), "depth_scale=-1; must be a positive number"),
+        (lambda f, s: np.save(f / "view_0.npy", np.load(f / "view_0.npy") * 1000),
+         "another unit than the poses"),
+        (lambda f, s: [row.__setitem__(3, 0.3 * row[3]) for row in s["views"][0]["pose"][:3]],
+         "the camera is inside the object's sphere"),
+    ],
+)  # fmt: skip
+def test_more_bad_depth_captures_name_the_file(model, tmp_path, change, message):
+    folder = write_folder(tmp_path / "caps", model, [START], "npy")
+    _edit(folder, lambda spec: change(folder, spec))
+    with pytest.raises(CaptureError, match=message):
+        plan(folder, "ig")
+    assert not (tmp_path / "out").exists()
+
+
+def test_captures_that_fill_the_plan_are_refused(model, tmp_path):
+    folder = write_folder(tmp_path / "caps", model, list(range(10)), "ply")
+    with pytest.raises(ValueError, match="n_views=10: the captures already hold 10 views"):
+        plan(folder, "ig")
+
+
+def test_a_capture_off_the_viewspace_joins_as_an_extra_visited_view(model, tmp_path):
+    views = episode_views(model, "ig")
+    folder = write_folder(tmp_path / "caps", model, views[:2], "ply")
+    result = plan(folder, "ig")
+    # The same captures with a viewspace of one ring that holds neither: both become extras,
+    # and the plan chooses among the ring's views.
+    settings = PlanSettings(
+        out_dir=tmp_path / "out", method="ig", captures=folder, center=(0.0, 0.0, 0.0),
+        radius=0.5, camera=CAMERA, points_per_view=0,
+        viewspace=ViewspaceSpec(kind="rings", elevations=(15.0,), per_ring=6),
+    )  # fmt: skip
+    ring = plan_captures(settings)
+    assert ring.n_candidates == 6 and ring.visited == [6, 7] and 0 <= ring.chosen[0] < 6
+    assert result.chosen == [views[2]]
+    assert any("extra views" in note for note in ring.notes)
