@@ -1,7 +1,8 @@
 """`python -m nbv.dataset` as 2-shard SLURM array jobs on the real single-node cluster.
 
 Both ways of the README: hydra multirun with the submitit launcher (Blender, tiny images) and the
-plain sbatch script (ray casting). Each shard file must hold the same arrays as a local run.
+plain sbatch script (ray casting, and a Blender binary given as BLENDER=). Each shard file must
+hold the same arrays as a local run.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from test_blender_binary import require_binary
 
 from nbv.dataset.config import Settings
 from nbv.dataset.generate import generate
@@ -35,8 +37,8 @@ COMMON = [
 ]
 
 
-def local_run(out: Path, backend: str) -> None:
-    """The same two shards made in this process."""
+def local_run(out: Path, backend: str, blender: str | None = None) -> None:
+    """The same two shards made in this process (``blender``: a binary, None = the bpy wheel)."""
     for shard in range(2):
         generate(
             Settings(
@@ -49,6 +51,7 @@ def local_run(out: Path, backend: str) -> None:
                 n_gt=1024,
                 points_per_view=32,
                 backend=backend,
+                blender=blender,
                 progress=False,
             )
         )
@@ -100,20 +103,40 @@ def test_hydra_submitit_array_matches_local_run(slurm_cluster, tmp_path):
     assert_same_arrays(out, local)
 
 
-def test_sbatch_script_array_matches_local_run(slurm_cluster, tmp_path):
+def sbatch_array(tmp_path: Path, *overrides: str, **env: str) -> Path:
+    """Run scripts/slurm_dataset.sbatch as a 2-task array; returns its OUT_DIR."""
     out = tmp_path / "slurm"
-    env = dict(os.environ, OUT_DIR=str(out), PYTHON=sys.executable, EXTRA=" ".join(COMMON))
+    env = dict(os.environ, OUT_DIR=str(out), PYTHON=sys.executable, EXTRA=" ".join(COMMON), **env)
     subprocess.run(
         [
             "sbatch", "--wait", "--array=0-1", "--cpus-per-task=1", "--mem=1G",
             f"--output={tmp_path}/task-%a.out", str(REPO / "scripts" / "slurm_dataset.sbatch"),
-            "renderer.backend=raycast",
+            *overrides,
         ],
         # Submitted from tmp_path: the tasks' hydra folders go there, not into the checkout.
         cwd=tmp_path, env=env, check=True, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     (hydra_dir,) = (tmp_path / "outputs" / "dataset").glob("slurm-*")
     assert sorted(p.name for p in hydra_dir.iterdir()) == ["shard0", "shard1"]
+    return out
+
+
+def test_sbatch_script_array_matches_local_run(slurm_cluster, tmp_path):
+    out = sbatch_array(tmp_path, "renderer.backend=raycast")
     local = tmp_path / "local"
     local_run(local, "raycast")
+    assert_same_arrays(out, local)
+
+
+def test_sbatch_script_with_a_blender_binary(slurm_cluster, tmp_path):
+    """``BLENDER=/usr/bin/blender sbatch ...``: each task checks the binary first (its log says
+    which Blender), then renders with it; the shards equal a local run with the same binary."""
+    binary = require_binary()
+    out = sbatch_array(tmp_path, BLENDER=binary)
+    for shard in (0, 1):
+        log = (tmp_path / f"task-{shard}.out").read_text()
+        assert f"renderer.blender={binary}" in log
+        assert f"preflight: Blender '{binary}' is Blender " in log, log
+    local = tmp_path / "local"
+    local_run(local, "blender", blender=binary)
     assert_same_arrays(out, local)

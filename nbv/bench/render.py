@@ -1,10 +1,13 @@
 """Benchmark the depth renderers: seconds a view for Blender and ray casting, in the same run.
 
-``python -m nbv.bench.render [--views 33] [--threads 2] [--meshes DIR | --no-meshes]`` renders
-a 50k-triangle mesh (and every OBJ of ``--meshes``, by default ``../shared/meshes`` beside the
-checkout when it exists) at 640 x 480 from the original viewspace with both backends,
-back-projects every view (:func:`nbv.geometry.camera.backproject`), checks that the backends agree
-and prints a table.
+``python -m nbv.bench.render [--views 33] [--threads 2] [--meshes DIR | --no-meshes]
+[--binary PATH | --no-binary]`` renders a 50k-triangle mesh (and every OBJ of ``--meshes``, by
+default ``../shared/meshes`` beside the checkout when it exists) at 640 x 480 from the original
+viewspace with both backends, back-projects every view (:func:`nbv.geometry.camera.backproject`),
+checks that the backends agree and prints a table. A Blender binary (``blender`` on the PATH by
+default, e.g. Debian's 3.4.1 from ``scripts/ensure_blender.sh``) gets rows of its own beside the
+bpy wheel's, named ``<mesh> with the Blender <version> binary``; without one they are skipped with
+a logged note.
 
 Blender's time a view is measured in steady state: the process first renders one view of the
 mesh (start-up, scene set-up), and the clock runs from that mesh's result to the result of the
@@ -14,8 +17,10 @@ full set of views, plus the back-projection. Start-up is reported separately.
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import resource
+import shutil
 import tempfile
 import time
 from pathlib import Path
@@ -26,12 +31,17 @@ from nbv.geometry.camera import Intrinsics, backproject, valid_depth, viewspace_
 from nbv.geometry.viewspace import original_viewspace
 from nbv.render.backends import render
 from nbv.render.job import RenderError, RenderJob
+from nbv.render.preflight import PreflightError, check_blender
 from nbv.render.raycast import render_raycast
+
+log = logging.getLogger(__name__)
 
 #: Development meshes beside a checkout (not part of the project), used when present.
 SHARED_MESHES = Path(__file__).resolve().parents[3] / "shared" / "meshes"
 #: Agreement threshold between the backends, world units.
 AGREEMENT_TOL = 1e-4
+#: The Blender binary timed beside the bpy wheel by default: the one on the PATH.
+DEFAULT_BINARY = "blender"
 
 
 def bumpy_torus(
@@ -189,6 +199,7 @@ def benchmark(
     meshes_dir: Path | None = None,
     blender: str | None = None,
     repeat: int = 1,
+    binary: str | None = DEFAULT_BINARY,
 ) -> dict:
     """Benchmark both backends on the bumpy torus and optionally on every OBJ in meshes_dir.
 
@@ -200,12 +211,17 @@ def benchmark(
         blender: a Blender executable, or None for the bpy module.
         repeat: measurements a mesh; the fastest of each time is kept (as ``timeit`` does), which
             filters out other load on a shared machine.
+        binary: a Blender binary (path or name on PATH) timed as well, each mesh once more;
+            None, or a binary that is missing or fails :func:`~nbv.render.preflight.check_blender`,
+            skips it with a logged note.
 
     Returns:
-        ``{mesh name: bench_mesh(...) result}``.
+        ``{mesh name: bench_mesh(...) result}``, and ``{"<mesh name> with the Blender <version>
+        binary": ...}`` for the binary.
     """
     if repeat < 1:
         raise ValueError(f"repeat must be >= 1, got {repeat}")
+    renderers = {"": blender} | _binary_renderer(binary)
     focal = 476.0 * width / 640.0
     intrinsics = Intrinsics(width, height, focal, focal, (width - 1) / 2, (height - 1) / 2)
     viewspace = original_viewspace()
@@ -217,12 +233,36 @@ def benchmark(
     results = {}
     with tempfile.TemporaryDirectory(prefix="nbv-bench-render-") as workdir:
         for name, (vertices, faces) in meshes.items():
-            runs = [
-                bench_mesh(vertices, faces, poses, intrinsics, threads, blender, Path(workdir))
-                for _ in range(repeat)
-            ]
-            results[name] = _fastest(runs)
+            for suffix, executable in renderers.items():
+                runs = [
+                    bench_mesh(
+                        vertices, faces, poses, intrinsics, threads, executable, Path(workdir)
+                    )
+                    for _ in range(repeat)
+                ]
+                results[name + suffix] = _fastest(runs)
     return results
+
+
+def _binary_renderer(binary: str | None) -> dict[str, str]:
+    """``{" with the Blender <version> binary": path}`` when ``binary`` passes the preflight
+    check, else ``{}`` with a logged note saying why it is skipped."""
+    if binary is None:
+        return {}
+    path = shutil.which(binary)
+    if path is None:
+        log.warning(
+            "no Blender binary %r on the PATH: its rows are skipped (Debian/Ubuntu: bash "
+            "scripts/ensure_blender.sh; elsewhere put a Blender 3.4-5.0 on the PATH)",
+            binary,
+        )
+        return {}
+    try:
+        info = check_blender(path)
+    except PreflightError as err:
+        log.warning("the Blender binary's rows are skipped: %s", err)
+        return {}
+    return {f" with the Blender {'.'.join(map(str, info.version))} binary": path}
 
 
 def _fastest(runs: list[dict]) -> dict:
@@ -240,8 +280,9 @@ def _fastest(runs: list[dict]) -> dict:
 
 def format_table(results: dict) -> str:
     """The benchmark results as a fixed-width text table (seconds a view: wall / CPU)."""
+    width = max([12, *(len(name) + 1 for name in results)])
     head = (
-        f"{'mesh':<12}{'tris':>7}{'views':>6}{'blender s':>16}{'raycast s':>16}"
+        f"{'mesh':<{width}}{'tris':>7}{'views':>6}{'blender s':>16}{'raycast s':>16}"
         f"{'backproj s':>16}{'ratio':>7}{'+bp':>6}{'start s':>8}{'<=1e-4':>9}"
         f"{'mask diff':>10}{'load':>6}"
     )
@@ -252,7 +293,7 @@ def format_table(results: dict) -> str:
             for k in ("blender", "raycast", "backproject")
         ]
         rows.append(
-            f"{name:<12}{r['triangles']:>7}{r['views']:>6}{pairs[0]:>16}{pairs[1]:>16}"
+            f"{name:<{width}}{r['triangles']:>7}{r['views']:>6}{pairs[0]:>16}{pairs[1]:>16}"
             f"{pairs[2]:>16}{r['ratio']:>7.1f}{r['ratio_with_backproject']:>6.1f}"
             f"{r['blender_startup_s']:>8.2f}{r['within']:>9.5f}{r['mask_mismatch']:>10d}"
             f"{r['load']:>6.1f}"
@@ -277,13 +318,21 @@ def main(argv: list[str] | None = None) -> None:
     )
     parser.add_argument("--no-meshes", action="store_true", help="only the bumpy torus")
     parser.add_argument("--blender", default=None, help="Blender executable (default: bpy)")
+    parser.add_argument(
+        "--binary",
+        default=DEFAULT_BINARY,
+        help=f"Blender binary timed beside it (default: {DEFAULT_BINARY!r} on the PATH)",
+    )
+    parser.add_argument("--no-binary", action="store_true", help="skip the binary's rows")
     parser.add_argument("--repeat", type=int, default=1, help="keep the fastest of N runs")
     args = parser.parse_args(argv)
     if args.meshes is not None and not args.meshes.is_dir():
         parser.error(f"--meshes {args.meshes} is not a folder")
     meshes = None if args.no_meshes else args.meshes
+    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
+    binary = None if args.no_binary else args.binary
     results = benchmark(
-        args.views, args.width, args.height, args.threads, meshes, args.blender, args.repeat
+        args.views, args.width, args.height, args.threads, meshes, args.blender, args.repeat, binary
     )
     print(format_table(results))
 
