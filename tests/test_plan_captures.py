@@ -4,6 +4,7 @@ the file, with nothing written."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -308,3 +309,17 @@ def test_a_capture_off_the_viewspace_joins_as_an_extra_visited_view(model, tmp_p
     assert ring.n_candidates == 6 and ring.visited == [6, 7] and 0 <= ring.chosen[0] < 6
     assert result.chosen == [views[2]]
     assert any("extra views" in note for note in ring.notes)
+
+
+def test_depth_captures_of_one_camera_make_it_the_planner_camera(model, tmp_path):
+    views = episode_views(model, "ig")
+    folder = write_folder(tmp_path / "caps", model, views[:2], "npy")
+    settings = PlanSettings(out_dir=tmp_path / "out", method="ig", captures=folder,
+                            center=(0.0, 0.0, 0.0), radius=0.5, points_per_view=0)  # fmt: skip
+    assert settings.camera != CAMERA
+    result = plan_captures(settings)
+    assert result.camera == CAMERA and result.chosen == [views[2]]
+    # Point clouds carry no camera: the setting's is used.
+    ply = plan_captures(dataclasses.replace(settings, captures=write_folder(
+        tmp_path / "ply", model, views[:2], "ply")))  # fmt: skip
+    assert ply.camera == settings.camera

@@ -10,8 +10,8 @@
   ``candidates``: the same for every candidate;
 * ``predicted_gains`` (and ``gain_unit``) of the chosen views, when the planner predicts any;
   ``coverage`` by view against the mesh (mesh input);
-* ``object`` (centre, radius, up, whether estimated), ``timings`` (seconds of each decision and
-  of the policy's stages), ``notes`` and ``settings``.
+* ``object`` (centre, radius, up, whether estimated), ``camera`` (the planner's), ``timings``
+  (seconds of each decision and of the policy's stages), ``notes`` and ``settings``.
 """
 
 from __future__ import annotations
@@ -78,6 +78,7 @@ def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
             "estimated": result.frame_estimated,
         },
         "camera_distance": float(np.linalg.norm(world[0, :3, 3] - result.frame.center)),
+        "camera": _jsonable(result.camera),
         "timings": {"decisions": result.decisions, "stages": result.stages},
         "notes": result.notes,
         "candidates": [_pose_entry(v, world[v]) for v in range(result.n_candidates)],

@@ -29,6 +29,7 @@ import numpy as np
 from nbv.assets.meshes import Mesh, load_mesh, normalise, sample_surface
 from nbv.dataset.generate import view_data
 from nbv.dataset.records import ModelData, ViewData
+from nbv.geometry.camera import Intrinsics
 from nbv.geometry.hull import QhullFailure, hull_volume
 from nbv.geometry.viewspace import angular_distances
 from nbv.plan.captures import (
@@ -73,6 +74,8 @@ class PlanResult:
         decisions: seconds of each policy call; ``stages`` the policy's own timings.
         captured_files: captures input: each capture's file and its view index.
         notes: what the policy or the input had to work around.
+        frame_estimated: the object's centre and radius were estimated from the captures.
+        camera: the planner's camera (its view simulation, ``ig``'s rays).
     """
 
     frame: ObjectFrame
@@ -88,6 +91,7 @@ class PlanResult:
     captured_files: list[dict] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     frame_estimated: bool = False
+    camera: Intrinsics | None = None
 
     @property
     def cloud(self) -> np.ndarray:
@@ -181,7 +185,7 @@ def _stage_seconds(policy) -> dict[str, float]:
     return {k: float(np.sum(v)) for k, v in getattr(policy, "timings", {}).items()}
 
 
-def _mesh_frame(settings: PlanSettings, center, radius) -> ObjectFrame:
+def _frame(settings: PlanSettings, center, radius) -> ObjectFrame:
     c = settings.center if settings.center is not None else center
     r = settings.radius if settings.radius is not None else radius
     frame = ObjectFrame(np.asarray(c, dtype=np.float64), float(r), settings.viewspace.up)
@@ -202,7 +206,7 @@ def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
     """
     mesh = load_mesh(settings.mesh)
     _, center, scale = normalise(mesh)
-    frame = _mesh_frame(settings, center, 0.5 / scale)
+    frame = _frame(settings, center, 0.5 / scale)
     normalised_vertices = frame.points_to_normalised(mesh.vertices)
     poses = candidate_poses(settings.viewspace.directions(), frame, settings.distance)
     rng = named_rng(settings.seed, "plan", "mesh")
@@ -238,6 +242,7 @@ def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
         decisions=recorder.seconds,
         stages=_stage_seconds(policy),
         notes=list(getattr(policy, "notes", [])) + episode.notes,
+        camera=settings.camera,
     ), depth
 
 
@@ -298,7 +303,7 @@ def load_capture_frame(settings: PlanSettings) -> tuple[list[Capture], ObjectFra
         log.info("object estimated from the captures: centre %s, radius %.4g (a lower bound: "
                  "give object.center / object.radius when you know them)",
                  np.round(est_center, 4).tolist(), est_radius)  # fmt: skip
-    frame = _mesh_frame(settings, center, radius)
+    frame = _frame(settings, center, radius)
     check_views_see(captures, frame.center, frame.radius, settings.camera)
     return captures, frame, estimated
 
@@ -334,9 +339,21 @@ def capture_state(
     return state
 
 
+def planner_camera(captures: list[Capture], default: Intrinsics) -> Intrinsics:
+    """The camera the planner simulates candidates with: the captures' depth camera when every
+    capture is a depth image taken with the same intrinsics, else ``default`` (the ``camera``
+    setting)."""
+    cameras = {c.intrinsics for c in captures}
+    if len(cameras) == 1 and None not in cameras:
+        return cameras.pop()
+    return default
+
+
 def plan_captures(settings: PlanSettings) -> PlanResult:
     """The next view (or a one-shot planner's remaining plan) from a folder of captures."""
     captures, frame, estimated = load_capture_frame(settings)
+    camera = planner_camera(captures, settings.camera)
+    log.info("planner camera: %s", camera)
     candidates = candidate_poses(settings.viewspace.directions(), frame, settings.distance)
     n = len(candidates)
     captured_poses = frame.poses_to_normalised(np.stack([c.pose for c in captures]))
@@ -366,7 +383,7 @@ def plan_captures(settings: PlanSettings) -> PlanResult:
         poses[index[i]] = captured_poses[i]
     state = capture_state(poses, parts, index, settings.points_per_view)
     state.model.source_path = str(settings.captures)
-    ctx = method_context(settings, settings.camera, n)
+    ctx = method_context(settings, camera, n)
     policy = METHODS[settings.method].build(ctx, policy_rng(settings.seed, settings.method))
     t0 = time.perf_counter()
     choice = policy(state)
@@ -383,5 +400,5 @@ def plan_captures(settings: PlanSettings) -> PlanResult:
     return PlanResult(
         frame=frame, model=state.model, n_candidates=n, visited=index, chosen=chosen, gains=gains,
         gain_unit=unit, decisions=[seconds], stages=_stage_seconds(policy),
-        captured_files=files, notes=notes, frame_estimated=estimated,
+        captured_files=files, notes=notes, frame_estimated=estimated, camera=camera,
     )  # fmt: skip
