@@ -133,7 +133,7 @@ def write_outputs(settings: PlanSettings, result: PlanResult) -> list[Path]:
         from nbv.plan.picture import draw_plan
 
         draw_plan(out / "plan.png", cloud, vertices, faces, world, result.visited,
-                  result.chosen, title)  # fmt: skip
+                  result.chosen, title, frame.up)  # fmt: skip
         written.append(out / "plan.png")
     if settings.page:
         from nbv.plan.page import write_plan_page

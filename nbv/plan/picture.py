@@ -21,6 +21,7 @@ def draw_plan(
     visited: list[int],
     chosen: list[int],
     title: str,
+    up: str = "y",
 ) -> None:
     """Draw a plan to a PNG (whole or not at all).
 
@@ -32,16 +33,23 @@ def draw_plan(
         visited: captured views (indices of ``candidates``), drawn purple.
         chosen: planned views in order, drawn orange and numbered from 1; the rest grey.
         title: the picture's title.
+        up: the world axis drawn vertical (``x``, ``y`` or ``z``; a sign is ignored).
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    # A cyclic permutation of the axes (it keeps the frame right-handed) puts ``up`` on
+    # matplotlib's vertical axis.
+    order = {"x": [1, 2, 0], "y": [2, 0, 1], "z": [0, 1, 2]}[up.lstrip("-")]
+    points, hull_vertices = np.asarray(points)[:, order], np.asarray(hull_vertices)[:, order]
+    candidates = np.asarray(candidates).copy()
+    candidates[:, :3, :] = candidates[:, order, :]
     fig = plt.figure(figsize=(7, 7))
     ax = fig.add_subplot(projection="3d")
     step = max(1, len(points) // MAX_POINTS)
-    p = np.asarray(points)[::step]
+    p = points[::step]
     ax.scatter(p[:, 0], p[:, 1], p[:, 2], s=0.5, c="#1f77b4", label="cloud")
     if len(hull_faces):
         ax.plot_trisurf(*np.asarray(hull_vertices).T, triangles=hull_faces, color="#2ca02c",
@@ -66,9 +74,10 @@ def draw_plan(
     ax.set_ylim(mid[1] - half, mid[1] + half)
     ax.set_zlim(mid[2] - half, mid[2] + half)
     ax.set_box_aspect((1, 1, 1))
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
-    ax.set_zlabel("z")
+    names = np.array(["x", "y", "z"])[order]
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
+    ax.set_zlabel(names[2])
     ax.set_title(title, fontsize=10)
     ax.legend(loc="upper left", fontsize=8)
     with atomic_path(path) as tmp:
