@@ -21,7 +21,7 @@ from nbv.geometry.viewspace import original_viewspace
 from nbv.geometry.viewspace_generators import rings
 from nbv.plan.config import PLANNABLE, PlanSettings, settings_from_config
 from nbv.plan.frame import ObjectFrame, candidate_poses
-from nbv.plan.run import match_views
+from nbv.plan.next_view import match_views
 from nbv.policies.registry import METHODS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -203,7 +203,7 @@ def test_the_bench_decision_is_the_plan_from_the_same_capture_file(box, tmp_path
     from nbv.assets.meshes import load_mesh, normalise
     from nbv.bench.plan import decide
     from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
-    from nbv.plan.run import plan_captures
+    from nbv.plan.next_view import plan_captures
     from nbv.planning.settings import PlannerSettings
     from nbv.render.raycast import render_raycast
 

@@ -19,7 +19,8 @@ from nbv.geometry.camera import Intrinsics, opencv_to_blender, project
 from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.plan.captures import CaptureError, check_rigid, read_captures
 from nbv.plan.config import PlanSettings
-from nbv.plan.run import plan_captures, policy_rng
+from nbv.plan.next_view import plan_captures
+from nbv.plan.policy import policy_rng
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import run_episode
 from nbv.policies.registry import METHODS, MethodContext

@@ -2,9 +2,9 @@
 
 The capture is one full-resolution view of the benchmark's chair (640 x 480; an even 50,000 of
 its points, or all of them when it has fewer), planned on the original viewspace with every point
-kept (``points_per_view=0``), as :func:`nbv.plan.run.plan_captures` does after reading the files:
-the capture moved into the planners' frame, the state built, a fresh policy called (for ``ig``
-the candidates' rays traced too, as in a run's first decision). The references: for ``hull_sco``
+kept (``points_per_view=0``), as :func:`nbv.plan.next_view.plan_captures` does after reading
+the files: the state built, a fresh policy called (for ``ig`` the candidates' rays traced too, as
+in a run's first decision). The references: for ``hull_sco``
 the same plan with the ray-cast view simulation (the planner's exact slow path), for ``ig`` the
 same decision in plain numpy (:func:`nbv.bench.volumetric.plain_decision`).
 """
@@ -40,7 +40,7 @@ def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrin
            hull: PlannerSettings) -> int | list[int]:  # fmt: skip
     """One decision of ``method`` after the capture ``(view, points)``, as nbv.plan makes it
     (the chair is normalised already: its frame is the planners'). The state is built as
-    :func:`nbv.plan.run.capture_state` builds it (the bench may not import nbv.plan: the two
+    :func:`nbv.plan.next_view.capture_state` builds it (the bench may not import nbv.plan: the two
     entry points are independent layers)."""
     offsets = np.zeros(len(poses) + 1, dtype=np.int64)
     offsets[view + 1 :] = len(points)
@@ -50,7 +50,7 @@ def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrin
                       np.zeros((0, 3), np.float32), float("nan"), {"plan": record})  # fmt: skip
     state = EpisodeState(model, "plan", np.arange(len(poses)) == view, [view])
     ctx = MethodContext({}, hull, intrinsics, 0.00707, 10, VolumetricSettings())
-    # The generator of nbv.plan.run.policy_rng.
+    # The generator of nbv.plan.policy.policy_rng.
     return METHODS[method].build(ctx, named_rng(0, "plan", method))(state)
 
 

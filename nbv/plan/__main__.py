@@ -24,8 +24,9 @@ log = logging.getLogger("nbv.plan")
 
 @hydra.main(config_path="../../conf", config_name="plan", version_base="1.3")
 def main(cfg: DictConfig) -> None:
+    from nbv.plan.mesh import plan_mesh, save_episode_captures
+    from nbv.plan.next_view import plan_captures
     from nbv.plan.output import write_outputs
-    from nbv.plan.run import plan_captures, plan_mesh, save_episode_captures
 
     try:
         settings = settings_from_config(cfg)

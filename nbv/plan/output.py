@@ -25,7 +25,7 @@ import numpy as np
 
 from nbv.geometry.camera import opencv_to_blender
 from nbv.plan.config import PlanSettings
-from nbv.plan.run import VIEWSPACE, PlanResult
+from nbv.plan.policy import VIEWSPACE, PlanResult
 from nbv.policies.episode import auc
 from nbv.utils.atomic import fsync_replace, write_text
 

@@ -1,0 +1,98 @@
+"""A whole episode on simulated captures of a mesh (``python -m nbv.plan mesh=...``).
+
+The mesh is placed as the dataset normalises it (bounding-box centre, farthest vertex; or the
+``object`` settings), every viewspace view is ray cast (:func:`nbv.render.raycast.render_raycast`)
+and turned into the dataset's view record (:func:`nbv.dataset.generate.view_data`), and
+:func:`nbv.policies.episode.run_episode` plays the episode from ``start_view``; coverage by view
+is measured against ``n_gt`` points sampled on the mesh. :func:`save_episode_captures` writes the
+first views as a capture folder (:mod:`nbv.plan.captures`), in the mesh's units.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from nbv.assets.meshes import Mesh, load_mesh, normalise, sample_surface
+from nbv.dataset.generate import view_data
+from nbv.dataset.records import ModelData
+from nbv.geometry.hull import QhullFailure, hull_volume
+from nbv.plan.captures import write_captures
+from nbv.plan.config import PlanSettings
+from nbv.plan.frame import candidate_poses
+from nbv.plan.policy import (
+    VIEWSPACE,
+    GainRecorder,
+    PlanResult,
+    method_context,
+    object_frame,
+    policy_rng,
+    stage_seconds,
+)
+from nbv.policies.episode import run_episode
+from nbv.policies.registry import METHODS
+from nbv.render.raycast import render_raycast
+from nbv.utils.seeding import named_rng
+
+log = logging.getLogger(__name__)
+
+
+def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
+    """Play a whole episode on simulated captures of ``settings.mesh``.
+
+    Returns:
+        ``(result, depth)``: the plan, and the (V, H, W) float32 depth images of every
+        candidate in normalised units (for :func:`save_episode_captures`).
+    """
+    mesh = load_mesh(settings.mesh)
+    _, center, scale = normalise(mesh)
+    frame = object_frame(settings, center, 0.5 / scale)
+    normalised_vertices = frame.points_to_normalised(mesh.vertices)
+    poses = candidate_poses(settings.viewspace.directions(), frame, settings.distance)
+    rng = named_rng(settings.seed, "plan", "mesh")
+    normalised = Mesh(normalised_vertices, mesh.faces, mesh.source_path)
+    gt = sample_surface(normalised, settings.n_gt, rng)
+    log.info("ray casting %d views of %s", len(poses), settings.mesh)
+    depth = render_raycast(normalised.vertices, normalised.faces, poses, settings.camera)
+    view = view_data(depth, poses, settings.camera, gt, settings.eps, settings.points_per_view,
+                     rng)  # fmt: skip
+    try:
+        gt_volume = hull_volume(gt)
+    except QhullFailure:
+        gt_volume = float("nan")
+    model = ModelData(
+        key=Path(settings.mesh).stem, category="", split="", source="mesh",
+        source_path=str(settings.mesh), center=frame.center, scale=frame.scale,
+        seed=settings.seed, gt_points=gt, gt_hull_volume=gt_volume, views={VIEWSPACE: view},
+    )  # fmt: skip
+    ctx = method_context(settings, settings.camera, len(poses))
+    policy = METHODS[settings.method].build(ctx, policy_rng(settings.seed, settings.method))
+    recorder = GainRecorder(policy)
+    episode = run_episode(model, VIEWSPACE, settings.start_view, recorder, settings.n_views)
+    gains = recorder.gains[: len(episode.views) - 1]
+    return PlanResult(
+        frame=frame,
+        model=model,
+        n_candidates=len(poses),
+        visited=[settings.start_view],
+        chosen=episode.views[1:],
+        gains=None if any(g is None for g in gains) else gains,
+        gain_unit=recorder.unit,
+        coverage=[float(c) for c in episode.coverage],
+        decisions=recorder.seconds,
+        stages=stage_seconds(policy),
+        notes=list(getattr(policy, "notes", [])) + episode.notes,
+        camera=settings.camera,
+    ), depth
+
+
+def save_episode_captures(settings: PlanSettings, result: PlanResult, depth: np.ndarray) -> Path:
+    """Write the episode's first ``save_captures`` views as a capture folder, in world units."""
+    folder = settings.captures_out or settings.out_dir / "captures"
+    views = (result.visited + result.chosen)[: settings.save_captures]
+    poses = result.frame.poses_to_world(result.model.views[VIEWSPACE].poses[views])
+    write_captures(folder, depth[views] / result.frame.scale, poses, settings.camera,
+                   result.frame.center, result.frame.radius)  # fmt: skip
+    return folder
