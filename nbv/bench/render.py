@@ -252,8 +252,9 @@ def _binary_renderer(binary: str | None) -> dict[str, str]:
     path = shutil.which(binary)
     if path is None:
         log.warning(
-            "no Blender binary %r on the PATH: its rows are skipped (Debian/Ubuntu: bash "
-            "scripts/ensure_blender.sh; elsewhere put a Blender 3.4-5.0 on the PATH)",
+            "no Blender binary %r (not an executable, nor a command on the PATH): its rows are "
+            "skipped (Debian/Ubuntu: bash scripts/ensure_blender.sh; elsewhere put a Blender "
+            "3.4-5.0 on the PATH or give --binary PATH)",
             binary,
         )
         return {}
