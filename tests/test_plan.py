@@ -5,6 +5,7 @@ file and leave nothing behind."""
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -39,9 +40,12 @@ def box(tmp_path_factory) -> Path:
 
 
 def run_plan(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """Run ``python -m nbv.plan args`` in ``cwd`` (hydra's one-line refusals: no full errors)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env.pop("HYDRA_FULL_ERROR", None)
     return subprocess.run(
         [sys.executable, "-m", "nbv.plan", *args], cwd=cwd, capture_output=True, text=True,
-        timeout=600, env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"},
+        timeout=600, env=env,
     )  # fmt: skip
 
 
