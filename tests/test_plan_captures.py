@@ -257,6 +257,27 @@ def test_a_16_bit_png_with_depth_scale_reads_as_the_float_depth_quantised(model,
     assert np.abs(png.points - stored).max() <= 0.0005 * 1.5
 
 
+def test_an_exr_depth_view_reads_as_the_npy_one(model, tmp_path):
+    import OpenEXR
+
+    folder = write_folder(tmp_path / "caps", model, [START], "npy")
+    depth = np.load(folder / "view_0.npy").astype(np.float32)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, {"Z": depth}) as exr:
+        exr.write(str(folder / "view_0.exr"))
+    _edit(folder, lambda s: s["views"][0].update(file="view_0.exr"))
+    (exr_view,), _ = read_captures(folder)
+    (npy_view,), _ = read_captures(write_folder(tmp_path / "npy", model, [START], "npy"))
+    assert exr_view.file.name == "view_0.exr"
+    # float32 depth: the same points to float32 rounding of the depth.
+    np.testing.assert_allclose(exr_view.points, npy_view.points, atol=1e-6)
+    with OpenEXR.File(header, {"A": depth}) as exr:
+        exr.write(str(folder / "alpha.exr"))
+    _edit(folder, lambda s: s["views"][0].update(file="alpha.exr"))
+    with pytest.raises(CaptureError, match=r"alpha.exr.*no depth channel"):
+        read_captures(folder)
+
+
 def test_a_pcd_view_reads_the_stored_points(model, tmp_path):
     folder = write_folder(tmp_path / "caps", model, [START], "ply")
     cloud = o3d.io.read_point_cloud(str(folder / "view_0.ply"))

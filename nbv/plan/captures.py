@@ -14,8 +14,9 @@ A capture folder holds ``views.json`` and one file a view (paths relative to the
     }
 
 * A view is a planar depth image (``.npy`` float world units, or integer with ``depth_scale``;
-  ``.png`` 16-bit with ``depth_scale``; ``.exr`` float, through the OpenEXR package when it is
-  installed) taken with ``intrinsics``, or a point cloud (``.ply``, ``.pcd``) in the world frame.
+  ``.png`` 16-bit with ``depth_scale``; ``.exr`` float, the first of its channels Z, Y, R, V or
+  depth, through the OpenEXR package) taken with ``intrinsics``, or a point cloud (``.ply``,
+  ``.pcd``) in the world frame.
   Depth 0, NaN or infinite is "no measurement".
 * ``pose`` is the camera-to-world 4x4 of the view (world units), OpenCV axes (x right, y down,
   z forward) unless ``axes`` says ``blender``. A view may give its own ``intrinsics`` and
@@ -40,6 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import OpenEXR
 
 from nbv.geometry.camera import Intrinsics, backproject, opencv_to_blender, project
 
@@ -142,13 +144,6 @@ def _read_depth(path: Path, scale: float | None, where: str) -> np.ndarray:
         if not mode.startswith("I"):
             raise CaptureError(f"{where}: a {mode} PNG; depth must be a 16-bit single-channel PNG")
     else:
-        try:
-            import OpenEXR  # noqa: F401  (optional: not a dependency of the project)
-        except ImportError:
-            raise CaptureError(
-                f"{where}: reading EXR needs the OpenEXR package (pip install OpenEXR); or save "
-                "the depth as .npy (float) or 16-bit .png with depth_scale"
-            ) from None
         raw = _read_exr(path, where)
     if raw.ndim != 2:
         raise CaptureError(f"{where}: depth must be one channel (H, W), got shape {raw.shape}")
@@ -167,9 +162,7 @@ def _read_depth(path: Path, scale: float | None, where: str) -> np.ndarray:
 
 
 def _read_exr(path: Path, where: str) -> np.ndarray:
-    """The first channel of an EXR file (OpenEXR >= 3.3's File API)."""
-    import OpenEXR
-
+    """The depth channel of an EXR file (OpenEXR >= 3.3's File API)."""
     try:
         with OpenEXR.File(str(path)) as exr:
             channels = exr.channels()
