@@ -6,7 +6,7 @@ Runs both ways::
     blender -b --factory-startup -P blender_scripts/render_depth.py -- --job job.json
 
 Imports only bpy, numpy and the standard library: a cluster's Blender binary has no ``nbv``.
-Tested with Blender 3.4.1 (Debian 12's package), the bpy 4.2.0 and 5.0.1 wheels; where their
+Tested with Blender 3.4.1 (Debian 12's package), the bpy 4.2.0, 4.5.15 and 5.0.1 wheels; where their
 Python API differs the script branches on ``bpy.app.version`` in one place (the flags below the
 imports). Its syntax stays within Python 3.7 so that a Blender down to 2.80 is told its version is
 not supported, instead of failing on a SyntaxError.
