@@ -15,9 +15,8 @@ import numpy as np
 
 from nbv.bench.timing import best_time
 from nbv.bench.volumetric import plain_decision
-from nbv.dataset.records import ModelData, ViewData
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
-from nbv.policies.episode import EpisodeState
+from nbv.policies.episode import captured_state
 from nbv.policies.registry import METHODS, MethodContext
 from nbv.utils.seeding import named_rng
 
@@ -39,16 +38,10 @@ def capture(views: list[np.ndarray]) -> tuple[int, np.ndarray]:
 def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrinsics,
            hull: PlannerSettings) -> int | list[int]:  # fmt: skip
     """One decision of ``method`` after the capture ``(view, points)``, as nbv.plan makes it
-    (the chair is normalised already: its frame is the planners'). The state is built as
-    :func:`nbv.plan.next_view.capture_state` builds it (the bench may not import nbv.plan: the two
-    entry points are independent layers)."""
-    offsets = np.zeros(len(poses) + 1, dtype=np.int64)
-    offsets[view + 1 :] = len(points)
-    record = ViewData(poses, points.astype(np.float32), offsets, np.zeros((len(poses), 1),
-                      np.uint8), np.zeros((0, 3), np.float32), np.zeros_like(offsets))  # fmt: skip
-    model = ModelData("capture", "", "", "bench", "", np.zeros(3), 1.0, 0,
-                      np.zeros((0, 3), np.float32), float("nan"), {"plan": record})  # fmt: skip
-    state = EpisodeState(model, "plan", np.arange(len(poses)) == view, [view])
+    (the chair is normalised already: its frame is the planners'), on the state nbv.plan
+    builds (:func:`nbv.policies.episode.captured_state`)."""
+    parts = [points if v == view else np.zeros((0, 3)) for v in range(len(poses))]
+    state = captured_state(poses, parts, [view])
     ctx = MethodContext({}, hull, intrinsics, 0.00707, 10, VolumetricSettings())
     # The generator of nbv.plan.policy.policy_rng.
     return METHODS[method].build(ctx, named_rng(0, "plan", method))(state)

@@ -5,7 +5,7 @@ The captures are read and checked (:mod:`nbv.plan.captures`), the object is plac
 ``object`` settings, else ``views.json``'s, else estimated from the points), each capture is
 matched to the viewspace direction it was taken from (within ``match_degrees``, seen from the
 object's centre) or joins the candidates as an extra visited view, and the registry's policy is
-called once on the captured state (:func:`capture_state`).
+called once on the captured state (:func:`nbv.policies.episode.captured_state`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ import time
 
 import numpy as np
 
-from nbv.dataset.records import ModelData, ViewData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.plan.captures import Capture, CaptureError, check_views_see, estimate_object, read_captures
@@ -30,7 +29,7 @@ from nbv.plan.policy import (
     predicted_gains,
     stage_seconds,
 )
-from nbv.policies.episode import EpisodeState
+from nbv.policies.episode import captured_state
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.utils.seeding import named_rng
 
@@ -89,37 +88,6 @@ def load_captureobject_frame(settings: PlanSettings) -> tuple[list[Capture], Obj
     return captures, frame, estimated
 
 
-def capture_state(
-    poses: np.ndarray, parts: list[np.ndarray], order: list[int], points_per_view: int = 0
-) -> EpisodeState:
-    """The state a policy reads after the captured views ``order``, normalised frame.
-
-    Args:
-        poses: (V', 4, 4) camera-to-world of the candidates (and any extra captured views).
-        parts: V' arrays (N_v, 3) of each view's points; empty for views not captured.
-        order: the captured views in order.
-        points_per_view: the subsampling the points were kept with (0 = all), for the record.
-
-    Returns:
-        An :class:`EpisodeState` over a one-viewspace record without ground truth (its
-        coverage bits and hull vertices are empty: only the oracle would read them).
-    """
-    offsets = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
-    view = ViewData(
-        poses=poses, points=np.concatenate(parts).astype(np.float32), offsets=offsets,
-        coverage=np.zeros((len(poses), 1), np.uint8), hull_points=np.zeros((0, 3), np.float32),
-        hull_offsets=np.zeros(len(poses) + 1, dtype=np.int64), points_per_view=points_per_view,
-    )  # fmt: skip
-    model = ModelData(
-        key="captures", category="", split="", source="captures", source_path="",
-        center=np.zeros(3), scale=1.0, seed=0, gt_points=np.zeros((0, 3), np.float32),
-        gt_hull_volume=float("nan"), views={VIEWSPACE: view},
-    )  # fmt: skip
-    state = EpisodeState(model, VIEWSPACE, np.zeros(len(poses), dtype=bool), list(order))
-    state.view_state[list(order)] = True
-    return state
-
-
 def planner_camera(captures: list[Capture], default: Intrinsics) -> Intrinsics:
     """The camera the planner simulates candidates with: the captures' depth camera when every
     capture is a depth image taken with the same intrinsics, else ``default`` (the ``camera``
@@ -162,7 +130,7 @@ def plan_captures(settings: PlanSettings) -> PlanResult:
         pts = _subsample(frame.points_to_normalised(c.points), settings.points_per_view, rng)
         parts[index[i]] = pts.astype(np.float32)
         poses[index[i]] = captured_poses[i]
-    state = capture_state(poses, parts, index, settings.points_per_view)
+    state = captured_state(poses, parts, index, settings.points_per_view, VIEWSPACE)
     state.model.source_path = str(settings.captures)
     ctx = method_context(settings, camera, n)
     policy = METHODS[settings.method].build(ctx, policy_rng(settings.seed, settings.method))

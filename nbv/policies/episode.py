@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nbv.dataset.records import ModelData
+from nbv.dataset.records import ModelData, ViewData
 from nbv.geometry.hull import QhullFailure
 from nbv.geometry.scores import coverage_from_bits
 
@@ -148,3 +148,41 @@ def run_episode(
     notes: list[str] = []
     cov, vig = curves(model, viewspace, state.order, notes)
     return Episode(state.order, cov, vig, times, notes)
+
+
+def captured_state(
+    poses: np.ndarray,
+    parts: list[np.ndarray],
+    order: list[int],
+    points_per_view: int = 0,
+    viewspace: str = "captures",
+) -> EpisodeState:
+    """The state a policy reads after the captured views ``order`` of a real scanner, in the
+    planners' frame (the object within radius 0.5 of the origin).
+
+    Args:
+        poses: (V, 4, 4) camera-to-world of the candidates (and any extra captured views).
+        parts: V arrays (N_v, 3) of each view's points; empty for views not captured.
+        order: the captured views in order.
+        points_per_view: the subsampling the points were kept with (0 = all), for the record.
+        viewspace: the name of the record's one viewspace.
+
+    Returns:
+        An :class:`EpisodeState` over a one-viewspace record without ground truth (its
+        coverage bits and hull vertices are empty: only the oracle would read them).
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    offsets = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
+    view = ViewData(
+        poses=poses, points=np.concatenate(parts).astype(np.float32), offsets=offsets,
+        coverage=np.zeros((len(poses), 1), np.uint8), hull_points=np.zeros((0, 3), np.float32),
+        hull_offsets=np.zeros(len(poses) + 1, dtype=np.int64), points_per_view=points_per_view,
+    )  # fmt: skip
+    model = ModelData(
+        key="captures", category="", split="", source="captures", source_path="",
+        center=np.zeros(3), scale=1.0, seed=0, gt_points=np.zeros((0, 3), np.float32),
+        gt_hull_volume=float("nan"), views={viewspace: view},
+    )  # fmt: skip
+    state = EpisodeState(model, viewspace, np.zeros(len(poses), dtype=bool), list(order))
+    state.view_state[list(order)] = True
+    return state
