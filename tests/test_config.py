@@ -5,9 +5,12 @@ log gets the INFO messages."""
 
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import h5py
@@ -19,6 +22,8 @@ from omegaconf import OmegaConf
 import nbv.bench.config
 import nbv.dataset.config
 import nbv.eval.config
+import nbv.export.config
+import nbv.plan.config
 import train.config
 from nbv.config.schema import ConfigError, describe
 from nbv.dataset.samples import SampleSettings
@@ -34,12 +39,23 @@ ENTRY_POINTS = {
     "train": train.config,
     "eval": nbv.eval.config,
     "bench": nbv.bench.config,
+    "plan": nbv.plan.config,
+    "export": nbv.export.config,
 }
+
+
+#: Inputs that exist, for the entry points that check theirs while building their settings.
+INPUTS = Path(tempfile.mkdtemp(prefix="nbv-test-config-"))
+atexit.register(shutil.rmtree, INPUTS, True)
+(INPUTS / "tetra.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n")
+#: The settings an entry point cannot run without (its input), given to every composition.
+REQUIRED = {"plan": [f"mesh={INPUTS / 'tetra.obj'}"], "export": [f"data_dir={INPUTS}"]}
 
 
 def composed(name: str, overrides: list[str] = (), hydra: bool = False):
     with initialize_config_dir(str(CONF), version_base="1.3"):
-        return compose(name, overrides=list(overrides), return_hydra_config=hydra)
+        overrides = [*REQUIRED.get(name, []), *overrides]
+        return compose(name, overrides=overrides, return_hydra_config=hydra)
 
 
 def build(name: str, cfg) -> list:
@@ -79,7 +95,10 @@ def test_every_config_composes_with_every_group_option(name, option):
     hydra_cfg = {k: OmegaConf.to_container(cfg.hydra[k], resolve=True) for k in parts}
     assert hydra_cfg["job"]["name"] == name and hydra_cfg["run"]["dir"] and cfg.hydra.sweep.dir
     settings, *others = build(name, cfg)
-    assert type(settings).__name__ in ("Settings", "TrainSettings", "EvalSettings", "BenchSettings")
+    assert type(settings).__name__ in (
+        "Settings", "TrainSettings", "EvalSettings", "BenchSettings", "PlanSettings",
+        "ExportSettings",
+    )  # fmt: skip
     for other in others:  # the samples (None when disabled), the network config
         assert other is None or isinstance(other, SampleSettings | PCNBVConfig)
 

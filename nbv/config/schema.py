@@ -28,6 +28,17 @@ class ConfigError(ValueError):
     """A setting that cannot be used; the message names the key and what is allowed."""
 
 
+def names(value: Any, key: str) -> tuple[str, ...]:
+    """A setting that takes null, one name or a list of names, as a tuple of names."""
+    if value is None:
+        return ()
+    if isinstance(value, str):
+        return (value,)
+    if isinstance(value, list | tuple) and all(isinstance(v, str) for v in value):
+        return tuple(value)
+    raise ConfigError(f"{key}={value!r}: must be null, a name or a list of names")
+
+
 @dataclass
 class CameraConfig:
     """``conf/camera/``: a pinhole camera, principal point at the image centre, fx = fy."""

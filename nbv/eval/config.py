@@ -23,6 +23,7 @@ from nbv.config.schema import (
     PathsConfig,
     ProtocolConfig,
     check_views,
+    names,
     register,
     schema_of,
     validated,
@@ -164,19 +165,8 @@ def _allowed(key: str, values: tuple, allowed: tuple, empty_ok: bool = False) ->
         raise EvalConfigError(f"{key} lists a name twice: {list(values)}")
 
 
-def _names(value, key: str) -> tuple[str, ...]:
-    """A config value that may be one name or a list of names."""
-    if value is None:
-        return ()
-    if isinstance(value, str):
-        return (value,)
-    if isinstance(value, list | tuple) and all(isinstance(v, str) for v in value):
-        return tuple(value)
-    raise EvalConfigError(f"{key}={value!r}: must be a name or a list of names")
-
-
 # The schema of conf/eval.yaml: which keys exist and their types (the values are there). A key
-# that takes one name or a list of names is typed Any and checked by _names.
+# that takes one name or a list of names is typed Any and checked by names.
 
 #: ``hull:``: the fields of PlannerSettings.
 HullConfig = schema_of(PlannerSettings, "HullConfig")
@@ -256,7 +246,7 @@ def settings_from_config(cfg) -> EvalSettings:
             f"checkpoints: unknown {unknown_ckpt}; allowed: {', '.join(NETWORK_INPUTS)}"
         )
     mesh_dir = c["mesh_dir"]
-    datasets = _names(c["dataset"], "dataset")
+    datasets = names(c["dataset"], "dataset")
     if not datasets:
         datasets = ("unseen", "meshes") if mesh_dir else ("unseen",)
     start_views = tuple(c["start_views"])
@@ -270,7 +260,7 @@ def settings_from_config(cfg) -> EvalSettings:
     camera = prep["camera"]
     return EvalSettings(
         out_dir=Path(c["out_root"]) / c["run"],
-        methods=_names(c["methods"], "methods"),
+        methods=names(c["methods"], "methods"),
         datasets=datasets,
         data_dir=Path(c["data_dir"]),
         mesh_dir=Path(mesh_dir) if mesh_dir else None,
@@ -287,14 +277,14 @@ def settings_from_config(cfg) -> EvalSettings:
             points_per_view=prep["points_per_view"],
             seed=prep["seed"],
         ),
-        viewspaces=_names(c["viewspace"], "viewspace"),
+        viewspaces=names(c["viewspace"], "viewspace"),
         start_views=start_views,
         n_views=c["n_views"],
         checkpoints=dict(checkpoints),
         hull=hull,
         ig=ig,
-        checks=_names(disturb["checks"], "disturb.checks"),
-        disturb_viewspaces=_names(disturb["viewspace"], "disturb.viewspace"),
+        checks=names(disturb["checks"], "disturb.checks"),
+        disturb_viewspaces=names(disturb["viewspace"], "disturb.viewspace"),
         disturb_start_views=disturb_starts,
         disturb_radius=disturb["radius"],
         noise_sigmas=tuple(float(x) for x in disturb["noise"]),

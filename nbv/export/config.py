@@ -15,7 +15,7 @@ from typing import Any
 
 from omegaconf import MISSING
 
-from nbv.config.schema import ConfigError, PathsConfig, register, validated
+from nbv.config.schema import ConfigError, PathsConfig, names, register, validated
 
 
 @dataclass(frozen=True)
@@ -53,9 +53,9 @@ class ExportSettings:
             raise ConfigError(f"methods={list(self.methods)}: only an eval_run has methods")
         if self.limit is not None and self.limit < 1:
             raise ConfigError(f"limit={self.limit!r}: must be null or an integer >= 1")
-        for key, names in (("viewspace", self.viewspaces), ("methods", self.methods)):
-            if len(set(names)) != len(names):
-                raise ConfigError(f"{key} lists a name twice: {list(names)}")
+        for key, listed in (("viewspace", self.viewspaces), ("methods", self.methods)):
+            if len(set(listed)) != len(listed):
+                raise ConfigError(f"{key} lists a name twice: {list(listed)}")
 
 
 @dataclass
@@ -76,17 +76,6 @@ class ExportConfig:
 register("export_schema", ExportConfig)
 
 
-def _names(value: Any, key: str) -> tuple[str, ...]:
-    """null, one name or a list of names, as a tuple."""
-    if value is None:
-        return ()
-    if isinstance(value, str):
-        return (value,)
-    if isinstance(value, list | tuple) and all(isinstance(v, str) for v in value):
-        return tuple(value)
-    raise ConfigError(f"{key}={value!r}: must be null, a name or a list of names")
-
-
 def settings_from_config(cfg) -> ExportSettings:
     """Build :class:`ExportSettings` from the composed hydra config of ``conf/export.yaml``.
 
@@ -99,8 +88,8 @@ def settings_from_config(cfg) -> ExportSettings:
         out_dir=Path(c["out_dir"]),
         eval_run=Path(c["eval_run"]) if c["eval_run"] else None,
         data_dir=Path(c["data_dir"]) if c["data_dir"] else None,
-        viewspaces=_names(c["viewspace"], "viewspace"),
-        methods=_names(c["methods"], "methods"),
+        viewspaces=names(c["viewspace"], "viewspace"),
+        methods=names(c["methods"], "methods"),
         limit=c["limit"],
         ascii=c["ascii"],
         progress=c["progress"],
