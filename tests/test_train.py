@@ -166,6 +166,23 @@ def test_fold_filter_keeps_held_out_and_unseen_categories_out(tmp_path):
     assert len(train) == 2 and len(val) == 0
 
 
+def test_fold_minus_one_holds_no_category_out(tmp_path):
+    rows = [(c, s) for c in ("chair", "car", "bus") for s in ("train", "valid", "test")]
+    train, val = split_samples(_samples(rows), tiny_settings(tmp_path, tmp_path, fold=-1))
+    assert sorted(zip(train.category, train.split, strict=True)) == [
+        ("car", "train"), ("chair", "train")
+    ]  # fmt: skip
+    assert sorted(val.category) == ["car", "chair"]  # bus: an unseen category, never
+
+
+def test_training_on_every_category_writes_no_heldout_score(tiny_dataset, tmp_path):
+    result = run(tiny_settings(tiny_dataset, tmp_path, fold=-1, epochs=1))
+    _, extra = load_checkpoint(tmp_path / "best.pt")
+    assert extra["held_out"] is None and result["heldout_auc"] == {}
+    assert result["selected_epoch"] == 1 and not (tmp_path / "heldout.json").exists()
+    assert extra["selection_keys"]  # chosen on the valid split of all the categories
+
+
 def test_signature_model_trains(tiny_dataset, tmp_path):
     result = run(tiny_settings(tiny_dataset, tmp_path, input="signature", epochs=1))
     assert np.isfinite(result["best_val_auc"])
@@ -213,6 +230,7 @@ def test_training_loss_drops_and_bf16_picks_as_fp32(tiny_dataset, tmp_path):
     "bad, message",
     [
         (dict(fold=8), "fold=8"),
+        (dict(fold=-2), "fold=-2.*or -1"),
         (dict(score="loud"), "score"),
         (dict(device="tpu"), "device"),
         (dict(precision="fp16"), "precision"),

@@ -94,7 +94,11 @@ class TrainSettings:
     def __post_init__(self) -> None:
         n = len(self.categories)
         checks = [
-            ("fold", 0 <= self.fold < n, f"an integer in 0..{n - 1} (the held-out category)"),
+            (
+                "fold",
+                -1 <= self.fold < n,
+                f"an integer in 0..{n - 1} (the held-out category), or -1 (none held out)",
+            ),
             ("score", self.score in SCORES, f"one of {', '.join(SCORES)} (score=...)"),
             ("model.input", self.input in INPUTS, f"one of {', '.join(INPUTS)}"),
             ("epochs", self.epochs >= 1, "an integer >= 1"),
@@ -117,9 +121,10 @@ class TrainSettings:
         check_views("start_views", self.start_views, "original", validation_views(self.dataset))
 
     @property
-    def held_out(self) -> str:
-        """The validation category of this fold."""
-        return self.categories[self.fold]
+    def held_out(self) -> str | None:
+        """The held-out category of this fold; None for ``fold=-1``, which trains on every
+        training category (the weights that ship)."""
+        return None if self.fold == -1 else self.categories[self.fold]
 
 
 # The schema of conf/train.yaml: which keys exist and their types (the values are there).

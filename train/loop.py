@@ -78,7 +78,9 @@ def split_samples(samples: SampleSet, settings: TrainSettings) -> tuple[SampleSe
     Raises:
         DatasetError: no training samples, or no validation samples with ``select=valid``.
     """
-    known = np.isin(samples.category, settings.categories) & (samples.category != settings.held_out)
+    known = np.isin(samples.category, settings.categories)
+    if settings.held_out is not None:
+        known &= samples.category != settings.held_out
     train = samples.select(known & (samples.split == "train"))
     val = samples.select(known & (samples.split == "valid"))
     if len(train) == 0 or (len(val) == 0 and settings.select == "valid"):
@@ -100,7 +102,8 @@ def fold_keys(dataset, settings: TrainSettings) -> tuple[list[str], list[str]]:
         for k in dataset.keys(split="valid")
         if dataset.index[k][1] in settings.categories and dataset.index[k][1] != settings.held_out
     ]
-    return selection, dataset.keys(category=settings.held_out)
+    held_out = [] if settings.held_out is None else dataset.keys(category=settings.held_out)
+    return selection, held_out
 
 
 def batch_inputs(
@@ -444,11 +447,16 @@ def _train(settings: TrainSettings) -> dict:
              "optimizer": opt, "scheduler": scheduler.state_dict()},
         )  # fmt: skip
     writer.close()
-    heldout = _heldout(out_dir, dataset, heldout_keys, settings, n_views)
-    means = {m: float(np.mean(v)) for m, v in heldout["auc"].items()}
+    if settings.held_out is None:  # fold=-1: no category left to score
+        _, extra = load_checkpoint(out_dir / "best.pt", n_views=n_views)
+        selected, means = int(extra["epoch"]) + 1, {}
+    else:
+        heldout = _heldout(out_dir, dataset, heldout_keys, settings, n_views)
+        selected = heldout["checkpoint"]["epoch"] + 1
+        means = {m: float(np.mean(v)) for m, v in heldout["auc"].items()}
     return {
         "best_val_auc": best_auc if np.isfinite(best_auc) else None,
-        "selected_epoch": heldout["checkpoint"]["epoch"] + 1,
+        "selected_epoch": selected,
         "last": row,
         "heldout_auc": means,
     }
