@@ -183,6 +183,24 @@ def test_training_on_every_category_writes_no_heldout_score(tiny_dataset, tmp_pa
     assert extra["selection_keys"]  # chosen on the valid split of all the categories
 
 
+def test_a_pcnbv_checkpoint_ships_in_bfloat16_with_its_provenance(tiny_dataset, tmp_path):
+    from train.ship import ship
+
+    run(tiny_settings(tiny_dataset, tmp_path / "run", fold=-1, epochs=1))
+    provenance = ship(tmp_path / "run" / "best.pt", tmp_path / "pcnbv.pt", "python -m x",
+                      tiny_dataset)  # fmt: skip
+    net, extra = load_checkpoint(tmp_path / "run" / "best.pt")
+    shipped, shipped_extra = load_checkpoint(tmp_path / "pcnbv.pt")
+    assert shipped_extra["shipped"] == provenance and "optimizer" not in shipped_extra
+    assert shipped_extra["held_out"] is None and shipped_extra["epoch"] == extra["epoch"]
+    for name, value in net.state_dict().items():
+        if value.is_floating_point():
+            torch.testing.assert_close(shipped.state_dict()[name], value.bfloat16().float())
+    (tmp_path / "notes.pt").write_text("not a checkpoint")
+    with pytest.raises(CheckpointError, match="notes.pt: not a checkpoint"):
+        ship(tmp_path / "notes.pt", tmp_path / "x.pt", "python -m x", tiny_dataset)
+
+
 def test_signature_model_trains(tiny_dataset, tmp_path):
     result = run(tiny_settings(tiny_dataset, tmp_path, input="signature", epochs=1))
     assert np.isfinite(result["best_val_auc"])
