@@ -147,7 +147,9 @@ def test_seeded_runs_repeat_and_seeds_matter(tiny, tmp_path):
     assert episode_rng(0, "random", "k", 3).random() == episode_rng(0, "random", "k", 3).random()
 
 
-def test_missing_checkpoint_is_skipped_and_the_rest_runs(tiny, tmp_path):
+def test_a_missing_checkpoint_takes_the_shipped_weights_and_a_wrong_one_is_skipped(tiny, tmp_path):
+    from nbv.assets.weights import shipped_weights
+
     missing = tmp_path / "nowhere" / "best.pt"
     settings = tiny_settings(
         tiny, tmp_path / "out", methods=("random", "pcnbv", "pcnbv_sph", "hull_sco"),
@@ -156,14 +158,18 @@ def test_missing_checkpoint_is_skipped_and_the_rest_runs(tiny, tmp_path):
     )  # fmt: skip
     run(settings)
     data = json.loads((tmp_path / "out" / "results.json").read_text())
-    assert set(data["skipped"]) == {"pcnbv", "pcnbv_sph"}
-    assert str(missing) in data["skipped"]["pcnbv"]
+    assert set(data["skipped"]) == {"pcnbv_sph"}
     assert "not signature" in data["skipped"]["pcnbv_sph"]  # a points network given for sph
-    assert {e["method"] for e in data["episodes"]} == {"random", "hull_sco"}
+    assert {e["method"] for e in data["episodes"]} == {"random", "pcnbv", "hull_sco"}
     noise = {f"position_noise_{x}" for x in ("0.002", "0.005", "0.01")}
-    assert {e["check"] for e in data["episodes"]} == {None, "random_hull"} | noise
+    checks = {None, "random_hull", "random_cloud", "permuted_state"} | noise
+    assert {e["check"] for e in data["episodes"]} == checks
     report = (tmp_path / "out" / "report.md").read_text()
-    assert "Skipped methods" in report and str(missing) in report
+    assert "Skipped methods" in report and "not signature" in report
+    assert f"`pcnbv` from `{shipped_weights('pcnbv')}` (the weights the package ships" in report
+    # Without the fallback (evaluate alone) a missing checkpoint is skipped, naming the path.
+    bare = evaluate(replace(settings, out_dir=tmp_path / "bare", checks=()))
+    assert str(missing) in bare.skipped["pcnbv"]
 
 
 def test_disturbances(full_run, tiny, tmp_path):
