@@ -114,6 +114,11 @@ def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
     assert (tmp_path / "run" / "metrics.csv").read_text().count("\n") == 3
     policy = ConditionedPolicy.from_checkpoint(tmp_path / "run" / "best.pt")
     ds = nbv.dataset.open(dataset)
+    # Validation Spearman per epoch and per validation model.
+    lines = (tmp_path / "run" / "val_spearman_by_model.csv").read_text().splitlines()
+    valid = load_conditioned(tmp_path / "run" / "best.pt")[1]["selection_keys"]
+    assert lines[0] == "epoch,model,samples,spearman"
+    assert sorted(line.split(",")[1] for line in lines[1:]) == sorted(valid * 2)
     model = ds.model(ds.keys(split="valid")[0])
     for viewspace in ("original", "permuted"):
         episode = run_episode(model, viewspace, 1, policy.fresh())

@@ -45,6 +45,25 @@ def read_csv(path: Path) -> list[dict]:
         return list(csv.DictReader(handle))
 
 
+def test_spearman_by_model_ranks_each_models_samples_alone(tmp_path):
+    from train.metrics import spearman_by_model, write_spearman_by_model
+
+    state = np.zeros((3, 4), bool)
+    target = np.array([[1.0, 2, 3, 4], [1, 2, 3, 4], [4, 3, 2, 1]])
+    pred = np.array([[1.0, 2, 3, 4], [4, 3, 2, 1], [4, 3, 2, 1]])
+    rows = spearman_by_model(pred, target, state, np.array(["b", "a", "b"]))
+    assert rows == [
+        {"model": "b", "samples": 2, "spearman": pytest.approx(1.0)},
+        {"model": "a", "samples": 1, "spearman": pytest.approx(-1.0)},
+    ]
+    path = tmp_path / "s.csv"
+    write_spearman_by_model(path, 1, rows)
+    write_spearman_by_model(path, 2, rows[:1])
+    write_spearman_by_model(path, 2, rows[1:])  # a resumed epoch 2 replaces the first one
+    assert [(r["epoch"], r["model"]) for r in read_csv(path)] == [("1", "b"), ("1", "a"),
+                                                                   ("2", "a")]  # fmt: skip
+
+
 def test_metrics_on_known_values():
     state = np.array([[True, False, False, False]])
     target = np.array([[9.0, 0.1, 0.5, 0.3]])
@@ -58,6 +77,11 @@ def test_training_runs_checkpoints_and_resumes(tiny_dataset, tmp_path):
     settings = tiny_settings(tiny_dataset, tmp_path / "a")
     result = run(settings)
     rows = read_csv(tmp_path / "a" / "metrics.csv")
+    by_model = read_csv(tmp_path / "a" / "val_spearman_by_model.csv")
+    assert {r["epoch"] for r in by_model} == {"1", "2"}  # every epoch, every valid model
+    assert sum(int(r["samples"]) for r in by_model if r["epoch"] == "1") == len(
+        split_samples(load_samples(tiny_dataset, "coverage"), settings)[1]
+    )
     assert [int(r["epoch"]) for r in rows] == [1, 2]
     for column in ("train_loss", "val_loss", "val_spearman", "val_best_view_hits", "val_auc"):
         assert np.isfinite(float(rows[-1][column]))

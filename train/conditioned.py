@@ -50,7 +50,7 @@ from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
 from nbv.utils.selection import masked_argmax
 from train.loop import append_csv_row
 from train.losses import LOSSES, batch_loss
-from train.metrics import spearman
+from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model, write_spearman_by_model
 
 log = logging.getLogger("train.conditioned")
 PROG = "train.conditioned"
@@ -127,9 +127,12 @@ def _turn(rng: np.random.Generator) -> np.ndarray:
 def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.random.Generator):
     """An epoch's samples (see the module docstring): arrays ``points (S, n, 3)``,
     ``directions (S, C, 3)``, ``view_state (S, C)`` bool, ``target (S, C)`` float32 and
-    ``pick (S, C)``, the candidates' rows in their model's pool."""
-    out: dict[str, list] = {k: [] for k in ("points", "directions", "view_state", "target", "pick")}
-    for pool in pools:
+    ``pick (S, C)``, the candidates' rows in their model's pool, and ``model (S,)``, the
+    sample's index in ``pools``."""
+    out: dict[str, list] = {
+        k: [] for k in ("points", "directions", "view_state", "target", "pick", "model")
+    }
+    for row, pool in enumerate(pools):
         for _ in range(settings.trajectories):
             pick = rng.choice(len(pool.directions), settings.candidates, replace=False)
             turn = _turn(rng)
@@ -151,6 +154,7 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
                 out["view_state"].append(state.copy())
                 out["target"].append(gains)
                 out["pick"].append(pick)
+                out["model"].append(row)
                 if rng.random() < settings.random_step_prob:
                     nxt = int(rng.choice(np.flatnonzero(~state)))
                 else:
@@ -279,6 +283,9 @@ def run(settings: ConditionedSettings) -> dict:
             **_validation_auc(model, dataset, valid_keys, settings),
             "seconds": time.perf_counter() - t0,
         }
+        by_model = spearman_by_model(val_pred, val_samples["target"], val_samples["view_state"],
+                                     np.asarray(valid_keys)[val_samples["model"]])  # fmt: skip
+        write_spearman_by_model(out / SPEARMAN_FILE, epoch + 1, by_model)
         rows.append(row)
         log.info("epoch %d: %s", epoch + 1, {k: round(v, 4) for k, v in row.items()})
         score = np.mean([row[f"val_auc_{v}"] for v in VIEWSPACES])

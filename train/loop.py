@@ -49,7 +49,13 @@ from train.augment import Augmentation
 from train.config import TrainSettings
 from train.heldout import HELDOUT_FILE, score_heldout
 from train.losses import batch_loss
-from train.metrics import best_view_hits, spearman
+from train.metrics import (
+    SPEARMAN_FILE,
+    best_view_hits,
+    spearman,
+    spearman_by_model,
+    write_spearman_by_model,
+)
 from train.resume import check_resumable, clear_run, file_digest, run_identity
 
 log = logging.getLogger(__name__)
@@ -415,6 +421,8 @@ def _train(settings: TrainSettings) -> dict:
                 val_spearman=spearman(pred, val.target, val.view_state),
                 val_best_view_hits=best_view_hits(pred, val.target, val.view_state),
             )
+            by_model = spearman_by_model(pred, val.target, val.view_state, val.key)
+            write_spearman_by_model(out_dir / SPEARMAN_FILE, epoch + 1, by_model)
         pred, _ = predict(model, probe, settings, device)
         row.update(
             train_spearman=spearman(pred, probe.target, probe.view_state),

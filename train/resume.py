@@ -22,7 +22,8 @@ from train.config import TrainConfigError, TrainSettings
 #: which records it and is recomputed when it differs.)
 RESUMABLE = ("epochs", "progress", "threads", "out_dir", "resume", "random_repeats")
 #: What a training run writes into its folder; resume=false deletes exactly these.
-RUN_FILES = ("last.pt", "best.pt", "metrics.csv", "settings.json", "heldout.json", "tb")
+RUN_FILES = ("last.pt", "best.pt", "metrics.csv", "settings.json", "heldout.json", "tb",
+             "val_spearman_by_model.csv")  # fmt: skip
 
 
 def file_digest(paths: list[Path]) -> str:
