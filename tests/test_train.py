@@ -46,7 +46,8 @@ def read_csv(path: Path) -> list[dict]:
 
 
 def test_spearman_by_model_ranks_each_models_samples_alone(tmp_path):
-    from train.metrics import spearman_by_model, write_spearman_by_model
+    from train.loop import append_csv_rows
+    from train.metrics import spearman_by_model
 
     state = np.zeros((3, 4), bool)
     target = np.array([[1.0, 2, 3, 4], [1, 2, 3, 4], [4, 3, 2, 1]])
@@ -57,9 +58,9 @@ def test_spearman_by_model_ranks_each_models_samples_alone(tmp_path):
         {"model": "a", "samples": 1, "spearman": pytest.approx(-1.0)},
     ]
     path = tmp_path / "s.csv"
-    write_spearman_by_model(path, 1, rows)
-    write_spearman_by_model(path, 2, rows[:1])
-    write_spearman_by_model(path, 2, rows[1:])  # a resumed epoch 2 replaces the first one
+    append_csv_rows(path, [{"epoch": 1, **r} for r in rows])
+    append_csv_rows(path, [{"epoch": 2, **rows[0]}])
+    append_csv_rows(path, [{"epoch": 2, **rows[1]}])  # a resumed epoch 2 replaces the first one
     assert [(r["epoch"], r["model"]) for r in read_csv(path)] == [("1", "b"), ("1", "a"),
                                                                    ("2", "a")]  # fmt: skip
 

@@ -48,9 +48,9 @@ from nbv.models.conditioned import (
 from nbv.policies.conditioned import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
 from nbv.utils.selection import masked_argmax
-from train.loop import append_csv_row
+from train.loop import append_csv_rows
 from train.losses import LOSSES, batch_loss
-from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model, write_spearman_by_model
+from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
 
 log = logging.getLogger("train.conditioned")
 PROG = "train.conditioned"
@@ -285,7 +285,7 @@ def run(settings: ConditionedSettings) -> dict:
         }
         by_model = spearman_by_model(val_pred, val_samples["target"], val_samples["view_state"],
                                      np.asarray(valid_keys)[val_samples["model"]])  # fmt: skip
-        write_spearman_by_model(out / SPEARMAN_FILE, epoch + 1, by_model)
+        append_csv_rows(out / SPEARMAN_FILE, [{"epoch": epoch + 1, **r} for r in by_model])
         rows.append(row)
         log.info("epoch %d: %s", epoch + 1, {k: round(v, 4) for k, v in row.items()})
         score = np.mean([row[f"val_auc_{v}"] for v in VIEWSPACES])
@@ -298,7 +298,7 @@ def run(settings: ConditionedSettings) -> dict:
         opt = optimizer.state_dict()
         opt["state"] = {str(k): v for k, v in opt["state"].items()}
         save_conditioned(last, model, {**extra, "best": best, "optimizer": opt})
-        append_csv_row(out / "metrics.csv", row)
+        append_csv_rows(out / "metrics.csv", [row])
     return {"last": rows[-1], "best_val_auc": best}
 
 

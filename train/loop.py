@@ -54,7 +54,6 @@ from train.metrics import (
     best_view_hits,
     spearman,
     spearman_by_model,
-    write_spearman_by_model,
 )
 from train.resume import check_resumable, clear_run, file_digest, run_identity
 
@@ -422,7 +421,7 @@ def _train(settings: TrainSettings) -> dict:
                 val_best_view_hits=best_view_hits(pred, val.target, val.view_state),
             )
             by_model = spearman_by_model(pred, val.target, val.view_state, val.key)
-            write_spearman_by_model(out_dir / SPEARMAN_FILE, epoch + 1, by_model)
+            append_csv_rows(out_dir / SPEARMAN_FILE, [{"epoch": epoch + 1, **r} for r in by_model])
         pred, _ = predict(model, probe, settings, device)
         row.update(
             train_spearman=spearman(pred, probe.target, probe.view_state),
@@ -445,7 +444,7 @@ def _train(settings: TrainSettings) -> dict:
         for name, value in row.items():
             if name != "epoch":
                 writer.add_scalar(name, value, epoch + 1)
-        append_csv_row(metrics_file, row)
+        append_csv_rows(metrics_file, [row])
         opt = optimizer.state_dict()
         opt["state"] = {str(k): v for k, v in opt["state"].items()}
         save_checkpoint(
@@ -470,14 +469,15 @@ def _train(settings: TrainSettings) -> dict:
     }
 
 
-def append_csv_row(path: Path, row: dict) -> None:
-    """Append one epoch's row (replacing the rows of that epoch and later ones, as a resumed
-    run writes them again), rewriting the header when new columns appear."""
+def append_csv_rows(path: Path, new: list[dict]) -> None:
+    """Append one epoch's rows, each with the same ``epoch`` (replacing the rows of that epoch
+    and later ones, as a resumed run writes them again), rewriting the header when new columns
+    appear."""
     rows = []
     if path.exists():
         with open(path, newline="") as handle:
             rows = list(csv.DictReader(handle))
-    rows = [r for r in rows if int(r["epoch"]) < row["epoch"]] + [row]
+    rows = [r for r in rows if int(r["epoch"]) < new[0]["epoch"]] + new
     columns = list(dict.fromkeys(k for r in rows for k in r))
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
         writer = csv.DictWriter(handle, columns)

@@ -2,13 +2,9 @@
 
 from __future__ import annotations
 
-import csv
-from pathlib import Path
-
 import numpy as np
 from scipy.stats import spearmanr
 
-from nbv.utils.atomic import atomic_path
 from nbv.utils.selection import masked_argmax
 
 #: Validation Spearman per model and epoch, in a training run's folder.
@@ -46,19 +42,6 @@ def spearman_by_model(
         value = spearman(pred[rows], target[rows], view_state[rows])
         out.append({"model": str(model), "samples": int(rows.sum()), "spearman": value})
     return out
-
-
-def write_spearman_by_model(path: Path, epoch: int, rows: list[dict]) -> None:
-    """Keep ``path`` (CSV: epoch, model, samples, spearman) with one epoch's rows replaced, so
-    that a resumed run writes an epoch once."""
-    kept = []
-    if path.exists():
-        with open(path, newline="") as handle:
-            kept = [r for r in csv.DictReader(handle) if int(r["epoch"]) < epoch]
-    with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, ["epoch", "model", "samples", "spearman"])
-        writer.writeheader()
-        writer.writerows(kept + [{"epoch": epoch, **r} for r in rows])
 
 
 def best_view_hits(pred: np.ndarray, target: np.ndarray, view_state: np.ndarray) -> float:
