@@ -20,6 +20,14 @@ def test_default_intrinsics_are_pcnbv():
     assert np.rad2deg(k.horizontal_fov) == pytest.approx(67.8, abs=0.05)
 
 
+def test_intrinsics_as_dict_round_trips_with_plain_types():
+    k = Intrinsics(64, 48, 50.0, 51, 31.5, 23)
+    d = k.as_dict()
+    assert d == {"width": 64, "height": 48, "fx": 50.0, "fy": 51.0, "cx": 31.5, "cy": 23.0}
+    assert [type(v) for v in d.values()] == [int, int, float, float, float, float]
+    assert Intrinsics(**d) == k
+
+
 @pytest.mark.parametrize("bad", [dict(width=0), dict(fx=-1.0)])
 def test_bad_intrinsics_refused(bad):
     with pytest.raises(ValueError):

@@ -164,17 +164,11 @@ def _check_identity(settings: Settings, shard_file: Path, parts_dir: Path) -> No
 
 
 def _root_attrs(settings: Settings) -> dict:
-    k = settings.intrinsics
     return {
         "schema_version": SCHEMA_VERSION,
         "eps": settings.eps,
         "n_gt": settings.n_gt,
-        "width": k.width,
-        "height": k.height,
-        "fx": k.fx,
-        "fy": k.fy,
-        "cx": k.cx,
-        "cy": k.cy,
+        **settings.intrinsics.as_dict(),
         "seed": settings.seed,
         "config": config_json(settings.data_identity()),
     }

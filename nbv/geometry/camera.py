@@ -55,6 +55,12 @@ class Intrinsics:
         """Square pixels, principal point at the image centre (PC-NBV's camera by default)."""
         return cls(width, height, focal, focal, (width - 1) / 2.0, (height - 1) / 2.0)
 
+    def as_dict(self) -> dict[str, int | float]:
+        """``{"width", "height", "fx", "fy", "cx", "cy"}``, sizes as int, the rest as float:
+        how job files, capture folders and the dataset's root attributes write a camera."""
+        return {"width": int(self.width), "height": int(self.height), "fx": float(self.fx),
+                "fy": float(self.fy), "cx": float(self.cx), "cy": float(self.cy)}  # fmt: skip
+
     @property
     def matrix(self) -> np.ndarray:
         """The 3x3 calibration matrix K."""

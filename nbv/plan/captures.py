@@ -364,17 +364,9 @@ def write_captures(
             name = f"view_{i:02d}.npy"
             np.save(tmp / name, np.asarray(depth, dtype=np.float32))
             views.append({"file": name, "pose": np.asarray(pose).tolist()})
-        k = intrinsics
         spec = {
             "axes": "opencv",
-            "intrinsics": {
-                "width": k.width,
-                "height": k.height,
-                "fx": k.fx,
-                "fy": k.fy,
-                "cx": k.cx,
-                "cy": k.cy,
-            },  # fmt: skip
+            "intrinsics": intrinsics.as_dict(),
             "object": {"center": np.asarray(center).tolist(), "radius": float(radius)},
             "views": views,
         }

@@ -33,12 +33,7 @@ _STDERR_TAIL_LINES = 20
 def job_spec(intrinsics: Intrinsics, threads: int, device: str) -> dict:
     """The settings of a job file shared by every mesh (the script's docstring lists the keys)."""
     return {
-        "width": intrinsics.width,
-        "height": intrinsics.height,
-        "fx": float(intrinsics.fx),
-        "fy": float(intrinsics.fy),
-        "cx": float(intrinsics.cx),
-        "cy": float(intrinsics.cy),
+        **intrinsics.as_dict(),
         "threads": int(threads),
         "device": device,
         "blender_versions": [list(v) for v in SUPPORTED_VERSIONS],
