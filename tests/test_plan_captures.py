@@ -21,8 +21,9 @@ from nbv.plan.captures import CaptureError, check_rigid, read_captures
 from nbv.plan.config import PlanSettings
 from nbv.plan.next_view import plan_captures
 from nbv.plan.policy import policy_rng
+from nbv.planning.information_gain import view_gains
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
-from nbv.policies.episode import run_episode
+from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.registry import METHODS, MethodContext
 
 CAMERA = Intrinsics.centred(64, 48, 48.0)
@@ -117,6 +118,17 @@ def test_next_view_from_captures_is_the_episode_of_the_dataset(model, tmp_path, 
     result = plan(folder, "ig")
     assert result.visited == views[:captured]
     assert result.chosen == [views[captured]]
+    # The planner's predicted gain is that of its decision: the best unvisited view's on its map.
+    ctx = MethodContext({}, PlannerSettings(), CAMERA, EPS, 10, VolumetricSettings())
+    policy = METHODS["ig"].build(ctx, policy_rng(0, "ig"))
+    state = EpisodeState(model, "original", np.isin(np.arange(33), views[:captured]),
+                         list(views[:captured]))  # fmt: skip
+    choice = policy(state)
+    poses = model.views["original"].poses
+    gains = view_gains(policy.occupancy, policy.candidate_voxels(poses), "unobserved")
+    assert policy.last_gains == [gains[choice]] == [max(gains[~state.view_state])]
+    assert result.gains == pytest.approx(policy.last_gains)
+    assert result.gain_unit == "information gain (unobserved voxels)"
 
 
 @pytest.mark.parametrize("kind", ["ply", "npy"])

@@ -138,7 +138,7 @@ def plan_captures(settings: PlanSettings) -> PlanResult:
     choice = policy(state)
     seconds = time.perf_counter() - t0
     chosen = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
-    gains, unit = predicted_gains(policy, state, chosen)
+    gains, unit = predicted_gains(policy, chosen)
     files = [
         {"file": str(c.file), "view": int(m) if m is not None else None, "points": len(c.points)}
         for c, m in zip(captures, matched, strict=True)

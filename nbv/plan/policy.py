@@ -119,22 +119,17 @@ def load_network(settings: PlanSettings, n_views: int):
         raise ValueError(f"checkpoint: {err}") from None
 
 
-def predicted_gains(policy, state: EpisodeState, chosen: list[int]) -> tuple[list | None, str]:
-    """The planner's own predicted gain of each chosen view, and what it counts.
+def predicted_gains(policy, chosen: list[int]) -> tuple[list | None, str]:
+    """The planner's own predicted gain of each chosen view, and what it counts
+    (``last_gains`` and ``gain_unit`` of the policy's last decision).
 
-    The convex-hull planners report the hull samples each planned view newly covers; the
-    information-gain planner's gains are read off its map after the decision (the unknown
-    voxels its rays count). Other methods predict no gain: None.
+    The convex-hull planners report the hull samples each planned view newly covers, the
+    information-gain planner the unknown voxels its rays count. Other methods predict no gain,
+    and a replanning hull planner's plan is longer than its one pick: None.
     """
-    if getattr(policy, "last_gains", None) and len(policy.last_gains) == len(chosen):
-        return [float(g) for g in policy.last_gains], "hull samples newly covered"
-    if getattr(policy, "occupancy", None) is not None and hasattr(policy, "candidate_voxels"):
-        from nbv.planning.information_gain import view_gains
-
-        poses = state.model.views[state.viewspace].poses
-        voxels = policy.candidate_voxels(poses)[chosen]
-        gains = view_gains(policy.occupancy, voxels, policy.settings.metric, policy.settings.depth)
-        return [float(g) for g in gains], f"information gain ({policy.settings.metric} voxels)"
+    gains = getattr(policy, "last_gains", None)
+    if gains and len(gains) == len(chosen):
+        return [float(g) for g in gains], policy.gain_unit
     return None, ""
 
 
@@ -154,7 +149,7 @@ class GainRecorder:
         choice = self.policy(state)
         self.seconds.append(time.perf_counter() - t0)
         chosen = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
-        gains, self.unit = predicted_gains(self.policy, state, chosen)
+        gains, self.unit = predicted_gains(self.policy, chosen)
         self.gains += gains if gains is not None else [None] * len(chosen)
         return choice
 

@@ -83,6 +83,8 @@ class HullSCOPolicy:
     counts: dict[str, int] = field(default_factory=lambda: {"planned": 0, "zero_gain": 0})
     #: The hull samples each view of the last plan newly covers, in plan order.
     last_gains: list[int] = field(default_factory=list)
+    #: What ``last_gains`` counts.
+    gain_unit: str = "hull samples newly covered"
 
     def plan_from(
         self, cloud: np.ndarray, poses: np.ndarray, visited: list[int], n_iter: int

@@ -40,6 +40,13 @@ class InformationGainPolicy:
     #: Candidate voxels already traced, by viewspace poses and settings: they depend on nothing
     #: else, so the episodes of a run share them (pass the run's dict).
     traced: dict = field(default_factory=dict)
+    #: The information gain of the last chosen view (one value).
+    last_gains: list[float] = field(default_factory=list)
+
+    @property
+    def gain_unit(self) -> str:
+        """What ``last_gains`` counts."""
+        return f"information gain ({self.settings.metric} voxels)"
 
     def update(self, state: EpisodeState) -> None:
         """Insert the captured views not in the map yet."""
@@ -94,6 +101,7 @@ class InformationGainPolicy:
             nearest = angular_distances(positions, positions[state.view_state]).min(axis=1)
             score = gains / gains.max() + self.settings.spread_weight * nearest / 180.0
         choice = masked_argmax(score, state.view_state)
+        self.last_gains = [float(gains[choice])]
         record_time(self.timings, "map", t1 - t0)
         record_time(self.timings, "gains", time.perf_counter() - t1)
         self.counts["planned"] += 1
