@@ -29,10 +29,12 @@ from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
 from nbv.eval.tables import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
+from nbv.planning.scorer import GainScorer, ScorerError, save_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
+from nbv.planning.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
-from nbv.policies.registry import PLANNERS, MethodContext
+from nbv.policies.registry import PLANNERS, SHIPPED_SCORER, MethodContext
 
 ROOT = Path(__file__).resolve().parents[1]
 STARTS = (1, 24)
@@ -81,13 +83,13 @@ def test_full_run_writes_every_output(full_run):
     data = json.loads((full_run / "results.json").read_text())
     episodes = data["episodes"]
     plain = [e for e in episodes if e["check"] is None]
-    # 2 models x 2 viewspaces x 12 methods (random with 10 seeds) x 2 starts, then the checks on
+    # 2 models x 2 viewspaces x 13 methods (random with 10 seeds) x 2 starts, then the checks on
     # 1 start of original: 2 networks x 2 checks + the random hull + 3 noise levels x (2
-    # networks + 2 one-shot planners + ig) = 20 x 2 models x 1 start.
-    assert len(METHODS_BY_NAME) == 12
-    assert len(plain) == 2 * 2 * (10 + 11) * 2
+    # networks + 2 one-shot planners + ig + ig_learned) = 23 x 2 models x 1 start.
+    assert len(METHODS_BY_NAME) == 13
+    assert len(plain) == 2 * 2 * (10 + 12) * 2
     assert sorted(e["repeat"] for e in plain if e["method"] == "random")[-1] == 9
-    assert len(episodes) - len(plain) == 20 * 2
+    assert len(episodes) - len(plain) == 23 * 2
     assert data["skipped"] == {}
     for e in episodes:
         assert len(e["views"]) == len(e["coverage"]) == len(e["vig"]) == 10
@@ -99,11 +101,12 @@ def test_full_run_writes_every_output(full_run):
                     "Replanning", "Disturbance checks", "Timing per reconstruction",
                     "paper / ours", "The paper's claims", "![disturbance.png]",
                     "## AUC minus spread", "## AUC minus random", "## Filler picks",
-                    "## Position noise", "![noise.png]", "verdict vs spread"):  # fmt: skip
+                    "## Position noise", "![noise.png]", "verdict vs spread",
+                    f"`ig_learned` from `{SHIPPED_SCORER}` (the weights the package ships"):  # fmt: skip
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 2 * 12 + 20  # (viewspace, method) pairs, then the checks
+    assert len(rows) == 2 * 13 + 23  # (viewspace, method) pairs, then the checks
     by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
     random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
     assert float(by[("original", "random", "")]["auc"]) == pytest.approx(
@@ -187,7 +190,7 @@ def test_disturbances(full_run, tiny, tmp_path):
     data = json.loads((full_run / "results.json").read_text())
     checks = {(e["check"], e["method"]) for e in data["episodes"] if e["check"]}
     noisy = {(f"position_noise_{x}", m) for x in ("0.002", "0.005", "0.01")
-             for m in ("pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph", "ig")}  # fmt: skip
+             for m in ("pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph", "ig", "ig_learned")}  # fmt: skip
     assert checks == {("random_cloud", "pcnbv"), ("random_cloud", "pcnbv_sph"),
                       ("permuted_state", "pcnbv"), ("permuted_state", "pcnbv_sph"),
                       ("random_hull", "hull_sco")} | noisy  # fmt: skip
@@ -402,13 +405,35 @@ def test_interrupted_evaluation_resumes_from_its_log(tiny, tmp_path):
     assert log.read_text().count('{"done"') == 2
 
 
+def test_ig_learned_runs_the_given_scorer_and_its_bytes_decide_the_log(tiny, tmp_path):
+    kw = dict(methods=("ig_learned",), viewspaces=("permuted",), checks=(), plots=False)
+    missing = tmp_path / "none.json"
+    with pytest.raises(ScorerError, match="none.json: no such scorer file"):
+        evaluate(tiny_settings(tiny, tmp_path / "out", ig_scorer=missing, **kw))
+    assert not (tmp_path / "out").exists()
+    own = tmp_path / "own.json"
+    # A scorer of one feature (the angle to the nearest captured view) plans as spread does.
+    weight = np.zeros((len(FEATURES), 1))
+    weight[FEATURES.index("angle_nearest")] = 1.0
+    save_scorer(own, GainScorer((weight,), (np.zeros(1),)))
+    settings = tiny_settings(tiny, tmp_path / "out", ig_scorer=own, **kw)
+    first = evaluate(settings).records
+    spread = evaluate(replace(settings, out_dir=tmp_path / "spread", methods=("spread",)))
+    assert [r.views for r in first] == [r.views for r in spread.records]
+    # The same file resumes; other weights in it are another run (the old log is set aside).
+    assert evaluate(settings).resumed == len(first)
+    save_scorer(own, GainScorer((-weight,), (np.zeros(1),)))
+    assert evaluate(settings).resumed == 0
+    assert (tmp_path / "out" / "episodes.jsonl.stale").exists()
+
+
 def test_hull_policies_get_the_dilation_setting():
     for dilate in (False, True):
         ctx = MethodContext({}, PlannerSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
         for method in PLANNERS:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
             hull = policy.hull if method == "hull_ig" else policy
-            if method != "ig":  # the volumetric planner has no hull
+            if method not in ("ig", "ig_learned"):  # the volumetric planners have no hull
                 assert hull.settings.dilate is dilate and hull.eps == 0.03, method
 
 

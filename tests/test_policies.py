@@ -17,6 +17,7 @@ from nbv.dataset.generate import generate
 from nbv.planning.hull import convex_hull
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.planner import plan_sph
+from nbv.planning.scorer import load_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned import ConditionedPolicy
@@ -24,7 +25,8 @@ from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import METHODS
+from nbv.policies.learned_gain import LearnedGainPolicy
+from nbv.policies.registry import METHODS, SHIPPED_SCORER
 from nbv.policies.volumetric import InformationGainPolicy
 
 #: A PCNBV small enough to run in milliseconds (the sizes of tests/test_train.py).
@@ -126,6 +128,9 @@ def all_policies(networks, seed: int = 0) -> dict:
         "ig": InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA),
         "hull_ig": HullThenGainPolicy(
             HullSCOPolicy(rng(seed), **hull), InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+        ),
+        "ig_learned": LearnedGainPolicy(
+            VOLUMETRIC, SMALL_CAMERA, scorer=load_scorer(SHIPPED_SCORER)
         ),
     }
 
@@ -339,7 +344,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
     # it has not captured would pick otherwise on the blinded model.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 11
+    assert len(names) == 12
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])

@@ -1,21 +1,27 @@
 """The method registry: every method builds a fresh policy of its kind from one context, and the
 lists that the evaluator, the checks and the report read are derived from it."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 from datagen import SMALL_CAMERA
 
+from nbv.planning.scorer import GainScorer, load_scorer
 from nbv.planning.settings import PlannerSettings
+from nbv.planning.view_features import FEATURES
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
+from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     CHECKS,
     METHODS,
     NETWORK_INPUTS,
     PLANNERS,
+    SHIPPED_SCORER,
     MethodContext,
     check_methods,
     method,
@@ -52,6 +58,13 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
     # The planners share the context's settings; only the probing one takes probe views and
     # only the signature one plans on the signature.
     assert kinds["ig"] is InformationGainPolicy and kinds["hull_ig"] is HullThenGainPolicy
+    assert kinds["ig_learned"] is LearnedGainPolicy
+    # Without a scorer in the context, ig_learned runs the shipped one; with one, that one.
+    shipped = METHODS["ig_learned"].build(ctx, np.random.default_rng(0)).scorer
+    assert shipped.info == load_scorer(SHIPPED_SCORER).info
+    own = GainScorer((np.ones((len(FEATURES), 1)),), (np.zeros(1),))
+    given = dataclasses.replace(ctx, scorer=own)
+    assert METHODS["ig_learned"].build(given, np.random.default_rng(0)).scorer is own
     ig = METHODS["ig"].build(ctx, np.random.default_rng(0))
     assert ig.settings == ctx.volumetric and ig.intrinsics == SMALL_CAMERA
     for name in [p for p in PLANNERS if p.startswith("hull_sco")]:
@@ -66,11 +79,12 @@ def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
         "random", "spread", "oracle", "pcnbv", "pcnbv_sph", "vcnbv",
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig",
-        "hull_ig",
+        "hull_ig", "ig_learned",
     ]  # fmt: skip
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "vcnbv": "directions"}
     assert PLANNERS == (
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig", "hull_ig",
+        "ig_learned",
     )  # fmt: skip
     assert [m.name for m in METHODS.values() if m.ground_truth] == ["oracle"]
     assert check_methods("random_cloud") == ("pcnbv", "pcnbv_sph")

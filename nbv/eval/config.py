@@ -32,7 +32,7 @@ from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import get_viewspace
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
-from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS
+from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS, SHIPPED_SCORER
 
 DATASETS = ("unseen", "test", "meshes")
 VIEWSPACES = ("original", "permuted")
@@ -81,6 +81,7 @@ class EvalSettings:
     )
     hull: PlannerSettings = field(default_factory=PlannerSettings)
     ig: VolumetricSettings = field(default_factory=VolumetricSettings)
+    ig_scorer: Path | None = None
     checks: tuple[str, ...] = CHECKS
     disturb_viewspaces: tuple[str, ...] = ("original",)
     disturb_start_views: tuple[int, ...] = (1, 10, 24)
@@ -92,6 +93,10 @@ class EvalSettings:
     workers: int = 1
     progress: bool = True
     plots: bool = True
+
+    def scorer_file(self) -> Path:
+        """The learned score ``ig_learned`` runs with: ``ig_scorer``, or the shipped one."""
+        return self.ig_scorer if self.ig_scorer is not None else SHIPPED_SCORER
 
     def __post_init__(self) -> None:
         _allowed("methods", self.methods, tuple(METHODS))
@@ -217,6 +222,7 @@ class EvalConfig:
     checkpoints: dict[str, str] = MISSING
     hull: HullConfig = field(default_factory=HullConfig)
     ig: IGConfig = field(default_factory=IGConfig)
+    ig_scorer: str | None = MISSING
     disturb: DisturbConfig = field(default_factory=DisturbConfig)
     random_repeats: int = MISSING
     seed: int = MISSING
@@ -283,6 +289,7 @@ def settings_from_config(cfg) -> EvalSettings:
         checkpoints=dict(checkpoints),
         hull=hull,
         ig=ig,
+        ig_scorer=Path(c["ig_scorer"]) if c["ig_scorer"] else None,
         checks=names(disturb["checks"], "disturb.checks"),
         disturb_viewspaces=names(disturb["viewspace"], "disturb.viewspace"),
         disturb_start_views=disturb_starts,

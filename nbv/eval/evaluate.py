@@ -29,9 +29,15 @@ from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
+from nbv.planning.scorer import load_scorer
 from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext, check_methods
+from nbv.policies.registry import (
+    METHODS,
+    NETWORK_INPUTS,
+    MethodContext,
+    check_methods,
+)
 
 log = logging.getLogger(__name__)
 
@@ -325,9 +331,12 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         torch.set_num_threads(settings.threads)
     runnable = [m for m in settings.methods if m not in skipped]
     jobs = _jobs(settings, runnable)
+    scorer_file = settings.scorer_file() if "ig_learned" in runnable else None
+    scorer = load_scorer(scorer_file) if scorer_file else None
     ident = identity(
         settings,
-        [Path(settings.checkpoints[m]) for m in runnable if m in networks],
+        [Path(settings.checkpoints[m]) for m in runnable if m in networks]
+        + ([scorer_file] if scorer_file else []),
         [info.path for info, _ in opened],
     )
     episodes = EpisodeLog(settings.out_dir / LOG_NAME, ident)
@@ -339,7 +348,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     for info, ds in opened:
         ctx = MethodContext(
             networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]), settings.n_views,
-            settings.ig,
+            settings.ig, scorer=scorer,
         )  # fmt: skip
         for key in info.keys:
             done = episodes.done.get((info.name, key))

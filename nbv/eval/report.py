@@ -241,6 +241,13 @@ def report_markdown(evaluation) -> str:
                if is_shipped(s.checkpoints[m]) else "")
             for m in nets
         )]  # fmt: skip
+    if "ig_learned" in methods:
+        scorer = s.scorer_file()
+        lines += [
+            "",
+            f"Learned score: `ig_learned` from `{scorer}`"
+            + (" (the weights the package ships)" if is_shipped(scorer) else ""),
+        ]
     if evaluation.skipped:
         lines += ["", "Skipped methods:"]
         lines += [f"- `{m}`: {reason}" for m, reason in evaluation.skipped.items()]

@@ -14,16 +14,21 @@ from typing import Any
 
 import numpy as np
 
+from nbv.assets.weights import FOLDER as WEIGHTS
 from nbv.geometry.camera import Intrinsics
+from nbv.planning.scorer import GainScorer, load_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
+from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 
 #: Disturbance checks (the paper's Fig. 18, and Gaussian position noise on the cloud a method
 #: sees): what each one replaces of a policy's input.
+#: The learned score ``ig_learned`` uses unless a run gives another (``ig_scorer``).
+SHIPPED_SCORER = WEIGHTS / "ig_learned.json"
 CHECKS = ("random_cloud", "permuted_state", "random_hull", "position_noise")
 
 
@@ -41,6 +46,8 @@ class MethodContext:
         volumetric: the information-gain planner's settings.
         traced: the information-gain planner's candidate voxels, shared by the episodes (they
             depend on the viewspace and the settings only).
+        scorer: the learned score of ``ig_learned``; None: the weights the package ships
+            (:data:`SHIPPED_SCORER`).
     """
 
     networks: Mapping[str, NetworkPolicy]
@@ -50,6 +57,7 @@ class MethodContext:
     n_views: int
     volumetric: VolumetricSettings = field(default_factory=VolumetricSettings)
     traced: dict = field(default_factory=dict, compare=False, repr=False)
+    scorer: GainScorer | None = field(default=None, compare=False, repr=False)
 
 
 Policy = Callable[[Any], "int | list[int]"]
@@ -206,6 +214,20 @@ HULL_IG = Method(
     style=("#8c564b", "-"),
 )
 
+IG_LEARNED = Method(
+    "ig_learned",
+    "ig's occupancy map, candidates ranked by a perceptron over their rays' map features",
+    lambda ctx, rng: LearnedGainPolicy(
+        ctx.volumetric,
+        ctx.intrinsics,
+        traced=ctx.traced,
+        scorer=ctx.scorer if ctx.scorer is not None else load_scorer(SHIPPED_SCORER),
+    ),  # fmt: skip
+    checks=("position_noise",),
+    planner=True,
+    style=("#17becf", "-"),
+)
+
 #: Every method, in report order.
 METHODS: dict[str, Method] = {
     m.name: m
@@ -222,6 +244,7 @@ METHODS: dict[str, Method] = {
         HULL_SCO_REPLAN,
         IG,
         HULL_IG,
+        IG_LEARNED,
     )
 }
 #: The methods that run a trained network: name -> the checkpoint input they need.

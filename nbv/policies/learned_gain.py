@@ -1,0 +1,54 @@
+"""``ig_learned``: the occupancy map of ``ig``, with candidates ranked by a learned score.
+
+``ig`` ranks candidates by one count (the unknown voxels their rays would cross). Here each
+candidate's rays give several (:mod:`nbv.planning.view_features`: the unknown volume and area it
+faces, the rear sides and frontier voxels it would see, how far the unknown region lies, its
+angle to the captured views), and a small perceptron trained on the training categories' true
+coverage gains (:mod:`nbv.planning.scorer`, ``python -m train.scorer``) weighs them. The policy
+reads what ``ig`` reads: the captured views' points and poses and the candidates' poses.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from nbv.planning.information_gain import view_gains
+from nbv.planning.scorer import GainScorer
+from nbv.planning.view_features import view_features
+from nbv.policies.episode import EpisodeState
+from nbv.policies.inputs import record_time
+from nbv.policies.volumetric import InformationGainPolicy
+
+
+@dataclass
+class LearnedGainPolicy(InformationGainPolicy):
+    """The unvisited view of the highest learned score on the map of the captured views
+    (ties to the lowest index). ``last_gains`` holds the chosen view's ``ig`` gain, and a pick
+    whose rays see no unknown voxel counts as ``zero_gain``."""
+
+    scorer: GainScorer | None = field(default=None, kw_only=True)
+
+    def __call__(self, state: EpisodeState) -> int:
+        if self.scorer is None:
+            raise ValueError("LearnedGainPolicy needs a scorer (nbv.planning.scorer.load_scorer)")
+        t0 = time.perf_counter()
+        self.update(state)
+        t1 = time.perf_counter()
+        view = state.model.views[state.viewspace]
+        candidates = self.candidate_voxels(view.poses)
+        open_ = np.flatnonzero(~state.view_state)
+        features = view_features(
+            self.occupancy, candidates[open_], view.poses[:, :3, 3], state.order, open_
+        )
+        best = int(np.argmax(self.scorer.scores(features)))
+        choice = int(open_[best])
+        gain = view_gains(self.occupancy, candidates[choice : choice + 1], self.settings.metric)
+        self.last_gains = [float(gain[0])]
+        record_time(self.timings, "map", t1 - t0)
+        record_time(self.timings, "gains", time.perf_counter() - t1)
+        self.counts["planned"] += 1
+        self.counts["zero_gain"] += int(gain[0] <= 0)
+        return choice

@@ -1,0 +1,314 @@
+"""Training of ``ig_learned``'s score (:mod:`nbv.planning.scorer`).
+
+``python -m train.scorer [key=value ...]`` (``conf/train_scorer.yaml``).
+
+1. **Decisions.** On every training model of the training categories, for both viewspaces,
+   ``starts`` episodes from seeded random start views run to ``n_views`` views on the occupancy
+   map of ``ig`` (its default settings). Before each pick the decision's candidates are stored:
+   their features (:func:`nbv.planning.view_features.view_features`) and their true coverage
+   gains. The next view is ``ig``'s pick with probability ``ig_step_prob``, the oracle's with
+   ``oracle_step_prob``, a random unvisited view otherwise: the decisions then cover the states
+   the planner meets and better ones. The models of the *valid* split give the validation
+   decisions the same way. They are computed once and kept in ``out_dir/decisions.npz`` (reused
+   when the settings and the dataset are the same).
+2. **Fit.** A perceptron (``hidden`` units per layer) learns the ranking with the ``normalised``
+   loss of :mod:`train.losses` (squared error against the gains over the decision's best gain),
+   each decision weighted by its best gain when ``weight_by_gain``, as AUC weighs it: the first
+   picks, which gain most, count most.
+3. **Choice.** ``scorer.json`` is the epoch whose picks capture the largest share of the best
+   gain on the validation decisions (``val_captured``, beside ``ig``'s own share). The unseen
+   categories take no part. ``metrics.csv`` has a row per epoch.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import hydra
+import numpy as np
+import torch
+from omegaconf import MISSING, DictConfig
+
+import nbv.dataset
+from nbv.assets.categories import TRAIN_CATEGORIES
+from nbv.config.cli import entry_point, refuse
+from nbv.config.schema import PathsConfig, register, schema_of, validated
+from nbv.dataset.records import score_functions
+from nbv.planning.scorer import GainScorer, save_scorer
+from nbv.planning.settings import VolumetricSettings
+from nbv.planning.view_features import FEATURES, view_features
+from nbv.policies.episode import EpisodeState
+from nbv.policies.volumetric import InformationGainPolicy
+from train.loop import append_csv_rows, dataset_identity
+from train.losses import per_sample_loss
+
+log = logging.getLogger("train.scorer")
+PROG = "train.scorer"
+VIEWSPACES = ("original", "permuted")
+DECISIONS = "decisions.npz"
+
+
+@dataclass(frozen=True)
+class ScorerSettings:
+    """See ``conf/train_scorer.yaml`` for each."""
+
+    dataset: Path
+    out_dir: Path
+    seed: int = 0
+    starts: int = 8
+    n_views: int = 10
+    ig_step_prob: float = 0.5
+    oracle_step_prob: float = 0.25
+    hidden: tuple[int, ...] = (32, 32)
+    epochs: int = 30
+    batch_size: int = 256
+    lr: float = 1e-3
+    weight_by_gain: bool = True
+    workers: int = 2
+    categories: tuple[str, ...] = TRAIN_CATEGORIES
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("starts", self.starts >= 1, "an integer >= 1"),
+            ("n_views", self.n_views >= 2, "an integer >= 2"),
+            ("ig_step_prob", 0 <= self.ig_step_prob <= 1, "in [0, 1]"),
+            ("oracle_step_prob", 0 <= self.oracle_step_prob <= 1 - self.ig_step_prob,
+             "in [0, 1 - ig_step_prob]"),
+            ("hidden", all(h >= 1 for h in self.hidden), "a list of integers >= 1"),
+            ("epochs", self.epochs >= 1, "an integer >= 1"),
+            ("batch_size", self.batch_size >= 1, "an integer >= 1"),
+            ("lr", self.lr > 0, "a positive number"),
+            ("workers", self.workers >= 1, "an integer >= 1"),
+        ]  # fmt: skip
+        for key, ok, allowed in checks:
+            if not ok:
+                raise ValueError(f"{key}={getattr(self, key)!r}: must be {allowed}")
+
+
+def model_decisions(
+    dataset_path: Path, key: str, row: int, settings: ScorerSettings
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The decisions of one model (module docstring, step 1): ``(features (C, F), gains (C,))``
+    per decision, the candidates being the unvisited views. Seeded by ``(seed, row)``."""
+    dataset = nbv.dataset.open(dataset_path)
+    model = dataset.model(key, VIEWSPACES)
+    rng = np.random.default_rng([settings.seed, row])
+    traced: dict = {}
+    out = []
+    for name in VIEWSPACES:
+        view = model.views[name]
+        gains_of, _ = score_functions(model, "coverage", name)
+        positions = view.poses[:, :3, 3]
+        n = len(positions)
+        for start in rng.choice(n, min(settings.starts, n), replace=False):
+            policy = InformationGainPolicy(VolumetricSettings(), dataset.intrinsics, traced=traced)
+            order, state = [int(start)], np.zeros(n, bool)
+            state[start] = True
+            while len(order) < min(settings.n_views, n):
+                policy.update(EpisodeState(model, name, state.copy(), list(order)))
+                candidates = np.flatnonzero(~state)
+                voxels = policy.candidate_voxels(view.poses)[candidates]
+                features = view_features(policy.occupancy, voxels, positions, order, candidates)
+                gains = gains_of(state)[candidates]
+                out.append((features.astype(np.float32), gains.astype(np.float32)))
+                u = rng.random()
+                if u < settings.ig_step_prob:  # FEATURES[0] ranks as ig does
+                    pick = candidates[np.argmax(features[:, 0])]
+                elif u < settings.ig_step_prob + settings.oracle_step_prob:
+                    pick = candidates[np.argmax(gains)]
+                else:
+                    pick = rng.choice(candidates)
+                order.append(int(pick))
+                state[pick] = True
+    return out
+
+
+def _padded(decisions: list[tuple[np.ndarray, np.ndarray]]) -> dict[str, np.ndarray]:
+    """Decisions as arrays: ``features (D, C, F)``, ``gains (D, C)`` and ``pad (D, C)`` bool
+    (True where a decision has fewer candidates than the most)."""
+    width = max(len(g) for _, g in decisions)
+    features = np.zeros((len(decisions), width, len(FEATURES)), np.float32)
+    gains = np.zeros((len(decisions), width), np.float32)
+    pad = np.ones((len(decisions), width), bool)
+    for i, (f, g) in enumerate(decisions):
+        features[i, : len(g)], gains[i, : len(g)], pad[i, : len(g)] = f, g, False
+    return {"features": features, "gains": gains, "pad": pad}
+
+
+def all_decisions(keys: list[str], rows: list[int], settings: ScorerSettings):
+    """:func:`model_decisions` of every key, in ``settings.workers`` processes, padded."""
+    args = [(settings.dataset, k, r, settings) for k, r in zip(keys, rows, strict=True)]
+    if settings.workers == 1:
+        parts = [model_decisions(*a) for a in args]
+    else:
+        with ProcessPoolExecutor(settings.workers) as pool:
+            parts = list(pool.map(model_decisions, *zip(*args, strict=True)))
+    return _padded([d for part in parts for d in part])
+
+
+def captured(scores: np.ndarray, gains: np.ndarray, pad: np.ndarray) -> float:
+    """The share of the best gain that the highest-scoring candidates capture, summed over the
+    decisions: ``sum gain[argmax score] / sum max gain`` (1 = the oracle's picks); padded
+    candidates (``pad``) take no part."""
+    s = np.where(pad, -np.inf, scores)
+    picked = np.take_along_axis(gains, s.argmax(axis=1)[:, None], axis=1)[:, 0]
+    best = np.where(pad, -np.inf, gains).max(axis=1)
+    return float(picked.sum() / max(best.sum(), 1e-12))
+
+
+def _network(settings: ScorerSettings) -> torch.nn.Sequential:
+    layers: list[torch.nn.Module] = []
+    width = len(FEATURES)
+    for h in settings.hidden:
+        layers += [torch.nn.Linear(width, h), torch.nn.ReLU()]
+        width = h
+    return torch.nn.Sequential(*layers, torch.nn.Linear(width, 1))
+
+
+def _scorer(net: torch.nn.Sequential, info: dict) -> GainScorer:
+    linear = [m for m in net if isinstance(m, torch.nn.Linear)]
+    return GainScorer(
+        tuple(m.weight.detach().double().numpy().T.copy() for m in linear),
+        tuple(m.bias.detach().double().numpy().copy() for m in linear),
+        info,
+    )
+
+
+def _loss(net, batch: dict[str, torch.Tensor], weight_by_gain: bool) -> torch.Tensor:
+    scores = net(batch["features"]).squeeze(-1)
+    losses = per_sample_loss("normalised", scores, batch["gains"], batch["pad"].float())
+    top = batch["gains"].amax(dim=1)
+    weight = top if weight_by_gain else (top > 0).float()
+    return (losses * weight).sum() / weight.sum().clamp_min(1e-12)
+
+
+def _decisions_of(settings: ScorerSettings, split: str, keys: list[str], offset: int) -> dict:
+    """The decisions of ``keys``, from ``out_dir/decisions.npz`` when it was made with the same
+    settings and dataset (its ``meta`` says), else computed and added to it."""
+    path = settings.out_dir / DECISIONS
+    plain = _plain(settings)
+    meta = {"identity": dataset_identity(settings.dataset), "keys": keys,
+            "settings": {k: plain[k] for k in ("seed", "starts", "n_views", "ig_step_prob",
+                                               "oracle_step_prob")}}  # fmt: skip
+    stored = dict(np.load(path)) if path.exists() else {}
+    if f"{split}_meta" in stored and json.loads(str(stored[f"{split}_meta"])) == meta:
+        return {k: stored[f"{split}_{k}"] for k in ("features", "gains", "pad")}
+    t0 = time.perf_counter()
+    made = all_decisions(keys, list(range(offset, offset + len(keys))), settings)
+    log.info("%s: %d decisions of %d models in %.0f s", split, len(made["gains"]), len(keys),
+             time.perf_counter() - t0)  # fmt: skip
+    stored.update({f"{split}_{k}": v for k, v in made.items()})
+    stored[f"{split}_meta"] = np.array(json.dumps(meta))
+    tmp = path.with_name("decisions.tmp.npz")
+    np.savez_compressed(tmp, **stored)
+    os.replace(tmp, path)
+    return made
+
+
+def _plain(settings: ScorerSettings) -> dict:
+    plain = asdict(settings)
+    plain.update(dataset=str(settings.dataset), out_dir=str(settings.out_dir),
+                 hidden=list(settings.hidden), categories=list(settings.categories))  # fmt: skip
+    return plain
+
+
+def run(settings: ScorerSettings) -> dict:
+    """Make the decisions, fit, write ``scorer.json`` and ``metrics.csv``; returns the chosen
+    epoch's row."""
+    dataset = nbv.dataset.open(settings.dataset)
+    categories = set(settings.categories)
+    keys = {s: [k for k in dataset.keys(split=s) if dataset.index[k][1] in categories]
+            for s in ("train", "valid")}  # fmt: skip
+    if not keys["train"] or not keys["valid"]:
+        raise ValueError(
+            f"{settings.dataset}: {len(keys['train'])} train and {len(keys['valid'])} valid "
+            "models of the training categories; both are needed"
+        )
+    settings.out_dir.mkdir(parents=True, exist_ok=True)
+    train = _decisions_of(settings, "train", keys["train"], 0)
+    valid = _decisions_of(settings, "valid", keys["valid"], len(keys["train"]))
+    ig_share = captured(valid["features"][..., 0], valid["gains"], valid["pad"])
+    tensors = {k: torch.from_numpy(v) for k, v in train.items()}
+    val_tensors = {k: torch.from_numpy(v) for k, v in valid.items()}
+    torch.manual_seed(settings.seed)
+    net = _network(settings)
+    optimizer = torch.optim.Adam(net.parameters(), lr=settings.lr)
+    rng = np.random.default_rng([settings.seed, 1])
+    info = {"settings": _plain(settings), "dataset_identity": dataset_identity(settings.dataset),
+            "train_models": len(keys["train"]), "selection_keys": keys["valid"]}  # fmt: skip
+    metrics = settings.out_dir / "metrics.csv"
+    metrics.unlink(missing_ok=True)
+    best: dict = {}
+    for epoch in range(settings.epochs):
+        t0 = time.perf_counter()
+        net.train()
+        order = torch.from_numpy(rng.permutation(len(train["gains"])))
+        losses = []
+        for i in range(0, len(order), settings.batch_size):
+            batch = {k: v[order[i : i + settings.batch_size]] for k, v in tensors.items()}
+            optimizer.zero_grad()
+            loss = _loss(net, batch, settings.weight_by_gain)
+            loss.backward()
+            optimizer.step()
+            losses.append(loss.item())
+        net.eval()
+        with torch.no_grad():
+            val_loss = _loss(net, val_tensors, settings.weight_by_gain).item()
+            val_scores = net(val_tensors["features"]).squeeze(-1).numpy()
+        row = {"epoch": epoch + 1, "train_loss": float(np.mean(losses)), "val_loss": val_loss,
+               "val_captured": captured(val_scores, valid["gains"], valid["pad"]),
+               "val_captured_ig": ig_share, "seconds": time.perf_counter() - t0}  # fmt: skip
+        append_csv_rows(metrics, [row])
+        log.info("epoch %d: %s", epoch + 1, {k: round(v, 4) for k, v in row.items()})
+        if not best or row["val_captured"] > best["val_captured"]:
+            best = row
+            chosen = {**info, "epoch": epoch + 1, "val_captured": row["val_captured"],
+                      "val_captured_ig": ig_share}  # fmt: skip
+            save_scorer(settings.out_dir / "scorer.json", _scorer(net, chosen))
+    return best
+
+
+@dataclass
+class ScorerTrainConfig(
+    schema_of(ScorerSettings, "ScorerFields", exclude=("dataset", "out_dir", "categories"))
+):
+    """The schema of ``conf/train_scorer.yaml``: the fields of :class:`ScorerSettings` (but the
+    training categories, which keep their default), paths as strings, and the shared paths."""
+
+    dataset: str = MISSING
+    out_dir: str = MISSING
+    paths: PathsConfig = field(default_factory=PathsConfig)
+
+
+register("train_scorer_schema", ScorerTrainConfig)
+
+
+def settings_from_config(cfg) -> ScorerSettings:
+    """:class:`ScorerSettings` from the composed config (``ConfigError`` names a bad key)."""
+    c = validated(ScorerTrainConfig, cfg)
+    del c["paths"]
+    c["dataset"], c["out_dir"] = Path(c["dataset"]), Path(c["out_dir"])
+    c["hidden"] = tuple(c["hidden"])
+    return ScorerSettings(**c)
+
+
+@hydra.main(config_path="../conf", config_name="train_scorer", version_base="1.3")
+def main(cfg: DictConfig) -> None:
+    try:
+        settings = settings_from_config(cfg)
+        best = run(settings)
+    except ValueError as err:
+        refuse(PROG, err)
+    log.info("done: epoch %d captures %.4f of the best gain on the validation decisions (ig "
+             "%.4f); %s", best["epoch"], best["val_captured"], best["val_captured_ig"],
+             settings.out_dir / "scorer.json")  # fmt: skip
+
+
+if __name__ == "__main__":
+    entry_point(PROG, main)
