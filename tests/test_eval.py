@@ -102,7 +102,7 @@ def test_full_run_writes_every_output(full_run):
                     "paper / ours", "The paper's claims", "![disturbance.png]",
                     "## AUC minus spread", "## AUC minus random", "## Filler picks",
                     "## Position noise", "![noise.png]", "verdict vs spread",
-                    f"`ig_learned` from `{SHIPPED_SCORER}` (the weights the package ships"):  # fmt: skip
+                    f"`ig_learned` from `{SHIPPED_SCORER}` (the weights the package"):  # fmt: skip
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
@@ -190,7 +190,8 @@ def test_disturbances(full_run, tiny, tmp_path):
     data = json.loads((full_run / "results.json").read_text())
     checks = {(e["check"], e["method"]) for e in data["episodes"] if e["check"]}
     noisy = {(f"position_noise_{x}", m) for x in ("0.002", "0.005", "0.01")
-             for m in ("pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph", "ig", "ig_learned")}  # fmt: skip
+             for m in ("pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph", "ig",
+                       "ig_learned")}  # fmt: skip
     assert checks == {("random_cloud", "pcnbv"), ("random_cloud", "pcnbv_sph"),
                       ("permuted_state", "pcnbv"), ("permuted_state", "pcnbv_sph"),
                       ("random_hull", "hull_sco")} | noisy  # fmt: skip

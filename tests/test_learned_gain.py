@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import torch
 from datagen import SMALL_CAMERA, make_train_dataset
+from test_policies import VOLUMETRIC, make_tiny_dataset
 
 import nbv.dataset
 from nbv.planning.information_gain import frontier, view_gains
@@ -22,7 +23,6 @@ from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.registry import SHIPPED_SCORER
 from nbv.policies.volumetric import InformationGainPolicy
-from test_policies import VOLUMETRIC, make_tiny_dataset
 from train.scorer import ScorerSettings, _scorer, captured, run
 
 

@@ -24,8 +24,8 @@ from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
-from nbv.policies.network import NetworkPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
+from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS, SHIPPED_SCORER
 from nbv.policies.volumetric import InformationGainPolicy
 
