@@ -11,18 +11,23 @@ import numpy as np
 import pytest
 import torch
 from datagen import SMALL_CAMERA, make_train_dataset
+from test_occupancy import INTO_POCKET, _cup, pocket_scene
 from test_policies import VOLUMETRIC, make_tiny_dataset
 
 import nbv.dataset
+from nbv.bench.volumetric import decision, numpy_ray_features, plain_decision
+from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.planning.information_gain import frontier, view_gains
 from nbv.planning.occupancy import OccupancyMap, OccupancySettings
 from nbv.planning.scorer import GainScorer, ScorerError, load_scorer, save_scorer
+from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, RAY_FEATURES, ray_features, view_features
 from nbv.policies.baselines import SpreadPolicy
 from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.registry import SHIPPED_SCORER
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.render.raycast import render_raycast
 from train.scorer import ScorerSettings, _scorer, captured, run
 
 
@@ -207,3 +212,36 @@ def test_settings_are_checked_by_name():
         ScorerSettings(Path("d"), Path("o"), ig_step_prob=0.5, oracle_step_prob=0.8)
     with pytest.raises(ValueError, match="hidden"):
         ScorerSettings(Path("d"), Path("o"), hidden=(0,))
+
+
+def test_the_benchmark_references_compute_the_same_features_and_decision():
+    occupancy = OccupancyMap(OccupancySettings(resolution=0.1, bound=0.6, object_radius=None))
+    rng = np.random.default_rng(4)
+    state = rng.choice(3, len(occupancy.log_odds), p=[0.5, 0.35, 0.15])
+    occupancy.log_odds[:] = np.where(state == 0, np.nan, np.where(state == 1, -0.4, 0.85))
+    rows = np.sort(rng.integers(-1, len(occupancy.log_odds), (300, 14)), axis=1)[:, ::-1]
+    near = frontier(occupancy)
+    np.testing.assert_allclose(
+        numpy_ray_features(occupancy.log_odds, rows, near, occupancy.settings.n),
+        ray_features(occupancy, rows),
+    )
+    cup = _cup()
+    camera = Intrinsics.centred(96, 72, 72.0)
+    directions = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, 0, 1], [1, 1, 1.0], [0, -1, 1]])
+    poses = viewspace_poses(directions / np.linalg.norm(directions, axis=1, keepdims=True))
+    depth = render_raycast(cup.vertices, cup.faces, poses, camera)
+    views = [(v, backproject(depth[v], camera, poses[v])) for v in (1, 3)]
+    settings = VolumetricSettings(resolution=0.04, block=4)
+    scorer = load_scorer(SHIPPED_SCORER)
+    assert decision(views, poses, camera, settings, scorer) == plain_decision(
+        views, poses, camera, settings, scorer
+    )
+
+
+def test_the_shipped_scorer_looks_into_the_pocket():
+    directions, poses, _, captured, voxels, occupancy = pocket_scene()
+    open_ = np.flatnonzero(~captured)
+    features = view_features(
+        occupancy, voxels[open_], poses[:, :3, 3], list(np.flatnonzero(captured)), open_
+    )
+    assert open_[np.argmax(load_scorer(SHIPPED_SCORER).scores(features))] == INTO_POCKET

@@ -172,10 +172,14 @@ def _cup() -> trimesh.Trimesh:
     return trimesh.util.concatenate(boxes)
 
 
-@pytest.mark.parametrize("metric", ["unobserved", "rear_side_voxel", "rear_side_entropy"])
-def test_information_gain_looks_into_the_pocket_where_spread_does_not(metric):
-    # (entropy does not: it prefers views through lightly observed free space, whose voxels
-    # have an entropy near 1 after one crossing at OctoMap's p_miss = 0.4)
+#: The view of :func:`pocket_scene` that looks into the pocket.
+INTO_POCKET = 9
+
+
+def pocket_scene():
+    """The cup seen from 9 views all around but never into its pocket (view ``INTO_POCKET``
+    does): ``(directions (V, 3), poses, camera, captured (V,) bool, candidate voxels, map)``
+    at the default ig settings."""
     cup = _cup()
     camera = Intrinsics.centred(96, 72, 72.0)
     oblique = [(np.cos(a), np.sin(a) * np.cos(b), np.sin(a) * np.sin(b))
@@ -186,18 +190,24 @@ def test_information_gain_looks_into_the_pocket_where_spread_does_not(metric):
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     poses = viewspace_poses(directions)
     depth = render_raycast(cup.vertices, cup.faces, poses, camera)
-    captured = np.arange(len(directions)) < 9  # all around, but never into the pocket
-    settings = VolumetricSettings()
-    occupancy = OccupancyMap(settings.occupancy())
+    captured = np.arange(len(directions)) < INTO_POCKET
+    occupancy = OccupancyMap(VolumetricSettings().occupancy())
     for v in np.flatnonzero(captured):
         points = backproject(depth[v], camera, poses[v])
         misses = background_directions(points, poses[v], camera, block=4)
         occupancy.insert_view(poses[v][:3, 3], points, misses)
     voxels = candidate_voxels(poses, camera, 16, occupancy.settings)
+    return directions, poses, camera, captured, voxels, occupancy
+
+
+@pytest.mark.parametrize("metric", ["unobserved", "rear_side_voxel", "rear_side_entropy"])
+def test_information_gain_looks_into_the_pocket_where_spread_does_not(metric):
+    # (entropy does not: it prefers views through lightly observed free space, whose voxels
+    # have an entropy near 1 after one crossing at OctoMap's p_miss = 0.4)
+    directions, _, _, captured, voxels, occupancy = pocket_scene()
     gains = view_gains(occupancy, voxels, metric)
-    into_pocket = 9
-    assert int(np.argmax(np.where(captured, -1, gains))) == into_pocket
-    assert spread_views(directions, captured, 1)[0] != into_pocket
+    assert int(np.argmax(np.where(captured, -1, gains))) == INTO_POCKET
+    assert spread_views(directions, captured, 1)[0] != INTO_POCKET
 
 
 def test_the_plain_decision_of_the_benchmark_is_the_planners():

@@ -21,6 +21,7 @@ from scipy.spatial import ConvexHull, cKDTree
 
 from nbv.assets.meshes import Mesh, normalise, sample_surface
 from nbv.assets.synthetic import build, catalogue
+from nbv.assets.weights import SHIPPED_SCORER
 from nbv.bench.plan import capture_rows
 from nbv.bench.timing import best_time
 from nbv.bench.volumetric import decision_row
@@ -40,6 +41,7 @@ from nbv.geometry.viewspace import original_viewspace
 from nbv.planning.hull import convex_hull, sample_hull
 from nbv.planning.planner import Plan
 from nbv.planning.planner import plan as sco_plan
+from nbv.planning.scorer import load_scorer
 from nbv.planning.set_cover import greedy_max_coverage
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets
@@ -261,6 +263,9 @@ def run(
     # The views as the dataset stores them (points_per_view = 2048).
     stored = [v[rng_pick(len(v), 2048, seed + i)] for i, v in enumerate(views)]
     rows.append(decision_row(stored, scene["poses"], scene["intrinsics"]))
+    rows.append(
+        decision_row(stored, scene["poses"], scene["intrinsics"], load_scorer(SHIPPED_SCORER))
+    )
     rows += capture_rows(views, scene["poses"], scene["intrinsics"])
     if network:
         from nbv.bench.network import episode_seconds

@@ -1,10 +1,13 @@
-"""Plain numpy references of the volumetric planner, and its benchmark rows.
+"""Plain numpy references of the volumetric planners, and their benchmark rows.
 
 :func:`numpy_traverse` is Amanatides and Woo's traversal vectorised over the segments with numpy
-(one numpy step for all segments per voxel crossed), :func:`numpy_ray_gains` the gain metrics on
-whole ``(R, S)`` arrays, and :func:`plain_decision` one information-gain decision built from them:
-the fair references of :mod:`nbv.planning.raytrace`, :func:`nbv.planning.information_gain.ray_gains`
-and :class:`nbv.policies.volumetric.InformationGainPolicy`.
+(one numpy step for all segments per voxel crossed), :func:`numpy_ray_gains` the gain metrics and
+:func:`numpy_ray_features` ``ig_learned``'s per-ray features on whole ``(R, S)`` arrays, and
+:func:`plain_decision` one information-gain decision built from them (``scorer``: an
+``ig_learned`` decision): the fair references of :mod:`nbv.planning.raytrace`,
+:func:`nbv.planning.information_gain.ray_gains`, :func:`nbv.planning.view_features.ray_features`,
+:class:`nbv.policies.volumetric.InformationGainPolicy` and
+:class:`nbv.policies.learned_gain.LearnedGainPolicy`.
 """
 
 from __future__ import annotations
@@ -21,7 +24,9 @@ from nbv.planning.information_gain import (
 )
 from nbv.planning.occupancy import OccupancyMap, background_directions, log_odds_of
 from nbv.planning.raytrace import clip_to_box, drop_end_voxels, flat_index
+from nbv.planning.scorer import GainScorer
 from nbv.planning.settings import VolumetricSettings
+from nbv.planning.view_features import view_features
 
 
 def numpy_traverse(
@@ -94,6 +99,29 @@ def numpy_ray_gains(
     return np.where(rear, np.where(unknown & before, weighted, 0.0).sum(axis=1), 0.0)
 
 
+def numpy_ray_features(
+    log_odds: np.ndarray, voxels: np.ndarray, frontier_mask: np.ndarray, n: int
+) -> np.ndarray:
+    """:func:`nbv.planning.view_features.ray_features` on whole arrays: (R, 8)."""
+    valid = voxels >= 0
+    index = np.where(valid, voxels, 0)
+    value = log_odds[index]
+    unknown = np.isnan(value) & valid
+    occupied = (value >= 0) & valid
+    before = valid & ~(np.cumsum(occupied, axis=1) > 0)
+    seen = unknown & before
+    count = seen.sum(axis=1).astype(float)
+    meets = occupied.any(axis=1)
+    first = np.argmax(occupied, axis=1)
+    rear = meets & (first > 0) & unknown[np.arange(len(voxels)), np.maximum(first - 1, 0)]
+    near = (seen & frontier_mask[index]).sum(axis=1)
+    first_unknown = np.where(seen.any(axis=1), np.argmax(seen, axis=1), 0)
+    free = valid & ~unknown & ~occupied & (np.arange(voxels.shape[1]) < first_unknown[:, None])
+    run = np.where(count > 0, free.sum(axis=1) / n, 0.0)
+    return np.stack([count, count > 0, meets, rear, near, np.minimum(count, 4),
+                     (count > 0) & ~meets, run], axis=1).astype(float)  # fmt: skip
+
+
 def _plain_insert(occupancy: OccupancyMap, origin, hits, misses) -> None:
     s = occupancy.settings
     far = occupancy.miss_ends(origin, misses)
@@ -111,9 +139,13 @@ def _plain_insert(occupancy: OccupancyMap, origin, hits, misses) -> None:
         )
 
 
-def plain_decision(views, poses, intrinsics: Intrinsics, settings: VolumetricSettings) -> int:
+def plain_decision(
+    views, poses, intrinsics: Intrinsics, settings: VolumetricSettings,
+    scorer: GainScorer | None = None,
+) -> int:  # fmt: skip
     """One information-gain decision in plain numpy: map the captured ``views`` (a list of
-    ``(view index, (N, 3) points)``), score every other view of ``poses``, return the best."""
+    ``(view index, (N, 3) points)``), score every other view of ``poses``, return the best;
+    with ``scorer``, ``ig_learned``'s decision."""
     occupancy = OccupancyMap(settings.occupancy())
     for v, points in views:
         misses = background_directions(points, poses[v], intrinsics, settings.block)
@@ -123,11 +155,25 @@ def plain_decision(views, poses, intrinsics: Intrinsics, settings: VolumetricSet
     s = occupancy.settings
     origins, ends = candidate_segments(poses[open_], intrinsics, settings.columns, s)
     voxels = numpy_traverse(origins, ends, s.n, s.bound)
+    if scorer is not None:
+        rays = numpy_ray_features(occupancy.log_odds, voxels, frontier(occupancy), s.n)
+        sums = rays.reshape(len(open_), -1, rays.shape[1]).sum(axis=1)
+        top = sums.max(axis=0)
+        relative = np.divide(sums, top, out=np.zeros_like(sums), where=top > 0)
+        unit = poses[:, :3, 3] / np.linalg.norm(poses[:, :3, 3], axis=1, keepdims=True)
+        order = [v for v, _ in views]
+        angles = np.degrees(np.arccos(np.clip(unit[open_] @ unit[order].T, -1, 1))) / 180
+        features = np.c_[relative, angles.min(axis=1), angles[:, -1], angles[:, 0],
+                         np.full(len(open_), len(order) / 10)]  # fmt: skip
+        return open_[int(np.argmax(scorer.scores(features)))]
     gains = numpy_ray_gains(occupancy.log_odds, voxels, settings.metric, frontier(occupancy))
     return open_[int(np.argmax(gains.reshape(len(open_), -1).sum(axis=1)))]
 
 
-def decision(views, poses, intrinsics: Intrinsics, settings: VolumetricSettings) -> int:
+def decision(
+    views, poses, intrinsics: Intrinsics, settings: VolumetricSettings,
+    scorer: GainScorer | None = None,
+) -> int:  # fmt: skip
     """The same decision as :func:`plain_decision` through the project's code, as the policy
     makes its first one on a viewspace (the candidates' voxels traced too)."""
     occupancy = OccupancyMap(settings.occupancy())
@@ -137,23 +183,34 @@ def decision(views, poses, intrinsics: Intrinsics, settings: VolumetricSettings)
     captured = {v for v, _ in views}
     open_ = [v for v in range(len(poses)) if v not in captured]
     voxels = candidate_voxels(poses[open_], intrinsics, settings.columns, occupancy.settings)
+    if scorer is not None:
+        order = [v for v, _ in views]
+        features = view_features(occupancy, voxels, poses[:, :3, 3], order, np.array(open_))
+        return open_[int(np.argmax(scorer.scores(features)))]
     return open_[int(np.argmax(view_gains(occupancy, voxels, settings.metric)))]
 
 
-def decision_row(stored: list[np.ndarray], poses: np.ndarray, intrinsics: Intrinsics) -> dict:
-    """The benchmark row of one information-gain decision after two captured views (1 and 9)
-    at the default settings: seconds of ours and of the plain reference, the same inputs, the
-    same number of runs each."""
+def decision_row(
+    stored: list[np.ndarray], poses: np.ndarray, intrinsics: Intrinsics,
+    scorer: GainScorer | None = None,
+) -> dict:  # fmt: skip
+    """The benchmark row of one information-gain decision (``scorer``: an ``ig_learned`` one)
+    after two captured views (1 and 9) at the default settings: seconds of ours and of the plain
+    reference, the same inputs, the same number of runs each."""
     settings = VolumetricSettings()
     views = [(1, stored[1]), (9, stored[9])]
-    ours = best_time(lambda: decision(views, poses, intrinsics, settings), repeat=3, budget=10)
-    plain = best_time(lambda: plain_decision(views, poses, intrinsics, settings), repeat=3,
-                      budget=10)  # fmt: skip
+    ours = best_time(lambda: decision(views, poses, intrinsics, settings, scorer), repeat=3,
+                     budget=10)  # fmt: skip
+    plain = best_time(lambda: plain_decision(views, poses, intrinsics, settings, scorer),
+                      repeat=3, budget=10)  # fmt: skip
+    what = "ig_learned decision" if scorer is not None else "information-gain decision"
     return dict(
-        name="information-gain decision, 2 captured views, 2 cm voxels",
+        name=f"{what}, 2 captured views, 2 cm voxels",
         ours=ours,
         reference=plain,
         ratio=plain / ours,
         target=0.050,
-        note="compiled traversal and gains vs numpy",
+        note="compiled traversal and "
+        + ("features" if scorer is not None else "gains")
+        + " vs numpy",
     )

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from nbv.assets.weights import FOLDER as WEIGHTS
+from nbv.assets.weights import SHIPPED_SCORER
 from nbv.geometry.camera import Intrinsics
 from nbv.planning.scorer import GainScorer, load_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
@@ -27,8 +27,6 @@ from nbv.policies.volumetric import InformationGainPolicy
 
 #: Disturbance checks (the paper's Fig. 18, and Gaussian position noise on the cloud a method
 #: sees): what each one replaces of a policy's input.
-#: The learned score ``ig_learned`` uses unless a run gives another (``ig_scorer``).
-SHIPPED_SCORER = WEIGHTS / "ig_learned.json"
 CHECKS = ("random_cloud", "permuted_state", "random_hull", "position_noise")
 
 

@@ -11,6 +11,9 @@ from pathlib import Path
 
 #: The folder of the shipped weights.
 FOLDER = Path(__file__).resolve().parent
+#: The learned score of ``ig_learned`` (JSON, :mod:`nbv.planning.scorer`; ``python -m
+#: train.scorer`` writes it).
+SHIPPED_SCORER = FOLDER / "ig_learned.json"
 
 
 def shipped_weights(method: str) -> Path | None:
