@@ -24,7 +24,9 @@ import nbv.dataset.config
 import nbv.eval.config
 import nbv.export.config
 import nbv.plan.config
+import train.conditioned
 import train.config
+import train.scorer
 from nbv.config.schema import ConfigError, describe
 from nbv.dataset.samples import SampleSettings
 from nbv.models.config import PCNBVConfig
@@ -41,6 +43,8 @@ ENTRY_POINTS = {
     "bench": nbv.bench.config,
     "plan": nbv.plan.config,
     "export": nbv.export.config,
+    "train_conditioned": train.conditioned,
+    "train_scorer": train.scorer,
 }
 
 
@@ -97,7 +101,7 @@ def test_every_config_composes_with_every_group_option(name, option):
     settings, *others = build(name, cfg)
     assert type(settings).__name__ in (
         "Settings", "TrainSettings", "EvalSettings", "BenchSettings", "PlanSettings",
-        "ExportSettings",
+        "ExportSettings", "ConditionedSettings", "ScorerSettings",
     )  # fmt: skip
     for other in others:  # the samples (None when disabled), the network config
         assert other is None or isinstance(other, SampleSettings | PCNBVConfig)
