@@ -59,7 +59,8 @@ def test_network_episode_feeds_the_captured_views_and_refuses_revisits():
         network_episode(lambda cloud, state: 4, views, start=4)
 
 
-def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy():
+@pytest.mark.parametrize("kind", ["points", "signature"])
+def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy(kind):
     import torch
 
     from nbv.bench.network import network_episode, plain_decider
@@ -74,7 +75,9 @@ def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy():
     net.eval()
     rng = np.random.default_rng(0)
     views = [rng.normal(size=(50, 3)).astype(np.float32) + i for i in range(12)]
-    policy = NetworkPolicy(for_inference(net, "fp32"), n_points=64, precision="fp32")
+    policy = NetworkPolicy(
+        for_inference(net, "fp32"), input=kind, n_points=64, lmax=2, precision="fp32"
+    )
     ours = network_episode(policy.decide, views, start=2)
-    assert ours == network_episode(plain_decider(net, 64), views, start=2)
+    assert ours == network_episode(plain_decider(net, 64, kind, 2), views, start=2)
     assert len(set(ours)) == 10

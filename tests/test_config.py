@@ -27,6 +27,7 @@ import nbv.plan.config
 import train.conditioned
 import train.config
 import train.scorer
+from nbv.assets.weights import shipped_weights
 from nbv.config.schema import ConfigError, describe
 from nbv.dataset.samples import SampleSettings
 from nbv.models.config import PCNBVConfig
@@ -240,10 +241,10 @@ def test_a_start_view_outside_the_viewspace_says_how_many_views_it_has(tmp_path)
     )
 
 
-def test_bench_checkpoint_defaults_to_fold_0_when_it_exists(tmp_path):
+def test_bench_checkpoint_defaults_to_fold_0_when_it_exists_else_the_shipped_one(tmp_path):
     fold0 = tmp_path / "best.pt"
     missing = build("bench", composed("bench", [f"paths.checkpoints.pcnbv={fold0}"]))[0]
-    assert missing.checkpoint is None and missing.network and missing.render
+    assert missing.checkpoint == shipped_weights("pcnbv") and missing.network and missing.render
     fold0.write_bytes(b"weights")
     found = build("bench", composed("bench", [f"paths.checkpoints.pcnbv={fold0}"]))[0]
     assert found.checkpoint == fold0

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from omegaconf import MISSING
 
+from nbv.assets.weights import shipped_weights
 from nbv.config.schema import ConfigError, PathsConfig, register, validated
 
 
@@ -21,6 +22,7 @@ class BenchSettings:
 
     Attributes:
         checkpoint: trained PCNBV weights the episode row times; None = untrained weights.
+            (The PCNBV-sph episode row times the shipped PCNBV-sph weights.)
         network: time the PCNBV episode row.
         render: time the rendering rows (Blender against ray casting).
         dataset: dataset folder of the 512-point ground-truth hull check (skipped when absent).
@@ -53,7 +55,7 @@ def settings_from_config(cfg) -> BenchSettings:
     """Build :class:`BenchSettings` from the composed hydra config of ``conf/bench.yaml``.
 
     ``checkpoint=null`` times fold 0's ``best.pt`` (``paths.checkpoints.pcnbv``) when it exists,
-    else untrained weights; a checkpoint given by name must exist.
+    else the shipped PCNBV weights; a checkpoint given by name must exist.
 
     Raises:
         ConfigError: an unknown key, a value of the wrong type, a checkpoint that is not there.
@@ -61,7 +63,7 @@ def settings_from_config(cfg) -> BenchSettings:
     c = validated(BenchConfig, cfg)
     if c["checkpoint"] is None:
         fold0 = Path(c["paths"]["checkpoints"]["pcnbv"])
-        checkpoint = fold0 if fold0.is_file() else None
+        checkpoint = fold0 if fold0.is_file() else shipped_weights("pcnbv")
     else:
         checkpoint = Path(c["checkpoint"])
         if not checkpoint.is_file():

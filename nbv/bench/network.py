@@ -1,11 +1,12 @@
-"""Time one 9-view episode of PCNBV inference, sampling included (a row of ``make bench``).
+"""Time one 9-view episode of PCNBV (or PCNBV-sph) inference, sampling included (rows of
+``make bench``).
 
 An episode starts from one captured view and asks the network nine times for the next view; each
-decision farthest-point samples the accumulated cloud to the network's points and runs one
-forward pass. The project's path is :class:`nbv.policies.network.NetworkPolicy` on the inference
-copy of the network (:func:`nbv.models.inference.for_inference`: batch norm folded, bfloat16
-where the CPU runs it natively, subnormals flushed); the reference is the plain float32 network
-called the same way.
+decision farthest-point samples the accumulated cloud to the network's points (or computes its
+spherical signature) and runs one forward pass. The project's path is
+:class:`nbv.policies.network.NetworkPolicy` on the inference copy of the network
+(:func:`nbv.models.inference.for_inference`: batch norm folded, bfloat16 where the CPU runs it
+natively, subnormals flushed); the reference is the plain float32 network called the same way.
 
 Untrained weights cost what trained ones cost only because subnormals are flushed in the
 project's path; pass a trained checkpoint (``python -m nbv.bench checkpoint=best.pt``) to time
@@ -21,6 +22,7 @@ import numpy as np
 
 from nbv.bench.timing import best_time
 from nbv.geometry.clouds import farthest_points
+from nbv.geometry.sph import signature
 from nbv.policies.episode import EPISODE_VIEWS
 
 
@@ -61,14 +63,20 @@ def load_network(checkpoint: Path | None, n_views: int = 33):
     return PCNBV(PCNBVConfig(n_views=n_views)).eval()
 
 
-def plain_decider(net, n_points: int) -> Callable[[np.ndarray, np.ndarray], int]:
-    """The reference decision: farthest point sampling and a plain float32 forward pass."""
+def plain_decider(
+    net, n_points: int, input: str = "points", lmax: int = 3
+) -> Callable[[np.ndarray, np.ndarray], int]:
+    """The reference decision: farthest point sampling (``input="signature"``: the spherical
+    signature of degree ``lmax``) and a plain float32 forward pass."""
     import torch
 
     from nbv.models.inference import masked_argmax
 
+    def features(cloud: np.ndarray) -> np.ndarray:
+        return signature(cloud, lmax) if input == "signature" else farthest_points(cloud, n_points)
+
     def decide(cloud: np.ndarray, state: np.ndarray) -> int:
-        x = torch.from_numpy(np.ascontiguousarray(farthest_points(cloud, n_points), np.float32))
+        x = torch.from_numpy(np.ascontiguousarray(features(cloud), np.float32))
         s = torch.from_numpy(state)[None]
         with torch.no_grad():
             return int(masked_argmax(net(x[None], s.float()), s)[0])
@@ -81,16 +89,22 @@ def episode_seconds(
     checkpoint: Path | None = None,
     start: int = 1,
     n_points: int = 512,
-    repeat: int = 3,
+    repeat: int = 5,
 ) -> dict[str, float]:
     """Best wall time of a whole episode over ``repeat`` runs, for the project's path
-    (``"ours"``) and the plain float32 network (``"reference"``), in seconds."""
+    (``"ours"``) and the plain float32 network (``"reference"``), in seconds. A checkpoint of
+    PCNBV-sph (its ``input`` is ``signature``) times signature episodes."""
     from nbv.models.inference import for_inference
     from nbv.policies.network import NetworkPolicy
 
     net = load_network(checkpoint, len(views))
-    policy = NetworkPolicy(for_inference(net, "auto"), n_points=n_points, precision="auto")
-    deciders = {"ours": policy.decide, "reference": plain_decider(net, n_points)}
+    kind = NetworkPolicy.from_checkpoint(checkpoint, len(views)) if checkpoint else None
+    policy = NetworkPolicy(
+        for_inference(net, "auto"), input=kind.input if kind else "points", n_points=n_points,
+        lmax=kind.lmax if kind else 3, precision="auto",
+    )  # fmt: skip
+    reference = plain_decider(net, n_points, policy.input, policy.lmax)
+    deciders = {"ours": policy.decide, "reference": reference}
     out = {}
     for name, decide in deciders.items():
         network_episode(decide, views, start)  # warm-up: first calls allocate, pick kernels

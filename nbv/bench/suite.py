@@ -21,7 +21,7 @@ from scipy.spatial import ConvexHull, cKDTree
 
 from nbv.assets.meshes import Mesh, normalise, sample_surface
 from nbv.assets.synthetic import build, catalogue
-from nbv.assets.weights import SHIPPED_SCORER
+from nbv.assets.weights import SHIPPED_SCORER, shipped_weights
 from nbv.bench.plan import capture_rows
 from nbv.bench.timing import best_time
 from nbv.bench.volumetric import decision_row
@@ -270,18 +270,22 @@ def run(
     if network:
         from nbv.bench.network import episode_seconds
 
-        t = episode_seconds(stored, checkpoint)
-        rows.append(
-            dict(
-                name="PCNBV 9-view episode, 512 points (sampling + 9 forwards)",
-                ours=t["ours"],
-                reference=t["reference"],
-                ratio=t["reference"] / t["ours"],
-                target=0.3,
-                note="inference copy vs plain float32 network"
-                + ("" if checkpoint else " (untrained weights)"),
+        sph = shipped_weights("pcnbv_sph")
+        episodes = [("PCNBV 9-view episode, 512 points (sampling + forwards)", checkpoint, 0.13),
+                    ("PCNBV-sph 9-view episode (signature + forwards)", sph, 0.04)]  # fmt: skip
+        for name, weights, target in episodes:
+            t = episode_seconds(stored, weights)
+            rows.append(
+                dict(
+                    name=name,
+                    ours=t["ours"],
+                    reference=t["reference"],
+                    ratio=t["reference"] / t["ours"],
+                    target=target,
+                    note="inference copy vs plain float32 network, "
+                    + (f"weights {weights.name}" if weights else "untrained weights"),
+                )
             )
-        )
     if render:
         import tempfile
 

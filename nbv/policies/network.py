@@ -104,7 +104,7 @@ class NetworkPolicy:
         points = self.features(cloud)
         t1 = time.perf_counter()
         device = next(self.model.parameters()).device
-        with torch.no_grad(), flush_denormals(), autocast(self.precision, device):
+        with torch.inference_mode(), flush_denormals(), autocast(self.precision, device):
             x = torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32))[None]
             s = torch.from_numpy(np.asarray(view_state, dtype=bool))[None]
             scores = self.model(x.to(device), s.float().to(device)).cpu()
