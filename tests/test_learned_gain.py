@@ -28,7 +28,7 @@ from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.registry import SHIPPED_SCORER
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.render.raycast import render_raycast
-from train.scorer import ScorerSettings, _scorer, captured, run
+from train.scorer import ScorerSettings, _scorer, captured, mixed_views, run
 
 
 def _walk(row: np.ndarray, log_odds: np.ndarray, near: np.ndarray, n: int) -> list[float]:
@@ -129,6 +129,8 @@ def test_a_scorer_of_one_feature_plans_as_ig_or_as_spread(tiny):
 def test_the_shipped_scorer_is_deterministic_and_needs_a_scorer(tiny):
     scorer = load_scorer(SHIPPED_SCORER)
     assert scorer.info["dataset_identity"] and scorer.info["selection_keys"]
+    loaded = LearnedGainPolicy.from_checkpoint(SHIPPED_SCORER, SMALL_CAMERA, VOLUMETRIC)
+    assert loaded.scorer.info == scorer.info and loaded.settings == VOLUMETRIC
     runs = [
         run_episode(tiny, "permuted", 7, LearnedGainPolicy(VOLUMETRIC, SMALL_CAMERA, scorer=scorer))
         for _ in range(2)
@@ -173,6 +175,18 @@ def test_unusable_scorer_files_are_refused_with_their_name(tmp_path):
         load_scorer(path)
 
 
+def test_a_mixed_viewspace_keeps_each_view_whole(tiny):
+    views = [tiny.views["original"], tiny.views["permuted"]]
+    picks = np.array([[1, 4], [0, 0], [1, 32], [0, 7]])
+    mixed = mixed_views(views, picks)
+    assert mixed.poses.shape == (4, 4, 4) and len(mixed.offsets) == 5
+    for row, (i, v) in enumerate(picks):
+        np.testing.assert_array_equal(mixed.poses[row], views[i].poses[v])
+        np.testing.assert_array_equal(mixed.view_points(row), views[i].view_points(v))
+        np.testing.assert_array_equal(mixed.coverage[row], views[i].coverage[v])
+        np.testing.assert_array_equal(mixed.view_hulls()[row], views[i].view_hulls()[v])
+
+
 def test_captured_share_of_the_best_gain():
     gains = np.array([[0.2, 0.5, 0.0], [0.1, 0.3, 9.0]])
     pad = np.array([[False, False, False], [False, False, True]])
@@ -192,18 +206,23 @@ def test_a_real_training_run_is_reproducible_and_keeps_its_decisions(tmp_path_fa
     first = (out / "scorer.json").read_bytes()
     scorer = load_scorer(out / "scorer.json")
     assert scorer.info["epoch"] == best["epoch"] and len(scorer.info["selection_keys"]) == 8
-    assert (out / "metrics.csv").read_text().count("\n") == 4
-    # 8 models x 2 viewspaces x 1 episode x 3 decisions, in each split.
+    header, *rows = (out / "metrics.csv").read_text().splitlines()
+    assert len(rows) == 3 and "train_spearman" in header and "val_spearman" in header
+    # 8 models x 3 viewspaces (original, permuted, a mix) x 1 episode x 3 decisions, each split.
     decisions = np.load(out / "decisions.npz")
-    assert decisions["train_gains"].shape == (8 * 2 * 3, 32)
-    assert decisions["valid_gains"].shape == (8 * 2 * 3, 32)
+    assert decisions["train_gains"].shape == (8 * 3 * 3, 32)
+    assert decisions["valid_gains"].shape == (8 * 3 * 3, 32)
+    assert np.bincount(decisions["valid_model"]).tolist() == [9] * 8
+    lines = (out / "val_spearman_by_model.csv").read_text().splitlines()
+    assert lines[0] == "epoch,model,samples,spearman" and len(lines) == 1 + 3 * 8
+    assert {line.split(",")[1] for line in lines[1:]} == set(scorer.info["selection_keys"])
     stamp = (out / "decisions.npz").stat().st_mtime_ns
     again = run(settings)
     assert (again["epoch"], again["val_captured"]) == (best["epoch"], best["val_captured"])
     assert (out / "scorer.json").read_bytes() == first
     assert (out / "decisions.npz").stat().st_mtime_ns == stamp  # kept, not made again
     # Other decision settings make the decisions again.
-    run(ScorerSettings(data, out, starts=1, n_views=3, epochs=1, workers=1, hidden=(4,)))
+    run(ScorerSettings(data, out, starts=1, mixes=0, n_views=3, epochs=1, workers=1, hidden=(4,)))
     assert np.load(out / "decisions.npz")["train_gains"].shape == (8 * 2 * 2, 32)
 
 

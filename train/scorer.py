@@ -2,11 +2,13 @@
 
 ``python -m train.scorer [key=value ...]`` (``conf/train_scorer.yaml``).
 
-1. **Decisions.** On every training model of the training categories, for both viewspaces,
-   ``starts`` episodes from seeded random start views run to ``n_views`` views on the occupancy
-   map of ``ig`` (its default settings). Before each pick the decision's candidates are stored:
-   their features (:func:`nbv.planning.view_features.view_features`) and their true coverage
-   gains. The next view is ``ig``'s pick with probability ``ig_step_prob``, the oracle's with
+1. **Decisions.** On every training model of the training categories, for both viewspaces and
+   ``mixes`` viewspaces of 33 views drawn at random from the model's 66 (new directions in the
+   same elevation band, in a random order), ``starts`` episodes from seeded random start views
+   run to ``n_views`` views on the occupancy map of ``ig`` (its default settings). Before each
+   pick the decision's candidates are stored: their features
+   (:func:`nbv.planning.view_features.view_features`) and their true coverage gains. The
+   next view is ``ig``'s pick with probability ``ig_step_prob``, the oracle's with
    ``oracle_step_prob``, a random unvisited view otherwise: the decisions then cover the states
    the planner meets and better ones. The models of the *valid* split give the validation
    decisions the same way. They are computed once and kept in ``out_dir/decisions.npz`` (reused
@@ -17,7 +19,10 @@
    picks, which gain most, count most.
 3. **Choice.** ``scorer.json`` is the epoch whose picks capture the largest share of the best
    gain on the validation decisions (``val_captured``, beside ``ig``'s own share). The unseen
-   categories take no part. ``metrics.csv`` has a row per epoch.
+   categories take no part. ``metrics.csv`` has a row per epoch (with the mean Spearman
+   correlation of the scores and the true gains over the decisions, on 2,000 fixed training
+   decisions and on the validation ones), ``val_spearman_by_model.csv`` a row per epoch and
+   validation model.
 """
 
 from __future__ import annotations
@@ -39,7 +44,7 @@ import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES
 from nbv.config.cli import entry_point, refuse
 from nbv.config.schema import PathsConfig, register, schema_of, validated
-from nbv.dataset.records import score_functions
+from nbv.dataset.records import ViewData, score_functions
 from nbv.planning.scorer import GainScorer, save_scorer
 from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, view_features
@@ -47,6 +52,7 @@ from nbv.policies.episode import EpisodeState
 from nbv.policies.volumetric import InformationGainPolicy
 from train.loop import append_csv_rows, dataset_identity
 from train.losses import per_sample_loss
+from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
 
 log = logging.getLogger("train.scorer")
 PROG = "train.scorer"
@@ -62,6 +68,7 @@ class ScorerSettings:
     out_dir: Path
     seed: int = 0
     starts: int = 8
+    mixes: int = 1
     n_views: int = 10
     ig_step_prob: float = 0.5
     oracle_step_prob: float = 0.25
@@ -76,6 +83,7 @@ class ScorerSettings:
     def __post_init__(self) -> None:
         checks = [
             ("starts", self.starts >= 1, "an integer >= 1"),
+            ("mixes", self.mixes >= 0, "an integer >= 0"),
             ("n_views", self.n_views >= 2, "an integer >= 2"),
             ("ig_step_prob", 0 <= self.ig_step_prob <= 1, "in [0, 1]"),
             ("oracle_step_prob", 0 <= self.oracle_step_prob <= 1 - self.ig_step_prob,
@@ -91,6 +99,24 @@ class ScorerSettings:
                 raise ValueError(f"{key}={getattr(self, key)!r}: must be {allowed}")
 
 
+def mixed_views(views: list[ViewData], picks: np.ndarray) -> ViewData:
+    """A viewspace of views taken from several: ``picks`` (K, 2) rows of (which of ``views``,
+    which view of it), in that order; each view keeps its pose, points, coverage and hull."""
+    chosen = [(views[i], int(v)) for i, v in picks]
+    points = [view.view_points(v) for view, v in chosen]
+    hulls = [view.hull_points[view.hull_offsets[v] : view.hull_offsets[v + 1]]
+             for view, v in chosen]  # fmt: skip
+    return ViewData(
+        poses=np.stack([view.poses[v] for view, v in chosen]),
+        points=np.concatenate(points),
+        offsets=np.concatenate([[0], np.cumsum([len(p) for p in points])]),
+        coverage=np.stack([view.coverage[v] for view, v in chosen]),
+        hull_points=np.concatenate(hulls),
+        hull_offsets=np.concatenate([[0], np.cumsum([len(h) for h in hulls])]),
+        points_per_view=views[0].points_per_view,
+    )
+
+
 def model_decisions(
     dataset_path: Path, key: str, row: int, settings: ScorerSettings
 ) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -99,9 +125,14 @@ def model_decisions(
     dataset = nbv.dataset.open(dataset_path)
     model = dataset.model(key, VIEWSPACES)
     rng = np.random.default_rng([settings.seed, row])
+    stored = [model.views[name] for name in VIEWSPACES]
+    pool = np.array([(i, v) for i, view in enumerate(stored) for v in range(len(view.poses))])
+    for m in range(settings.mixes):
+        picks = pool[rng.choice(len(pool), len(stored[0].poses), replace=False)]
+        model.views[f"mix{m}"] = mixed_views(stored, picks)
     traced: dict = {}
     out = []
-    for name in VIEWSPACES:
+    for name in model.views:
         view = model.views[name]
         gains_of, _ = score_functions(model, "coverage", name)
         positions = view.poses[:, :3, 3]
@@ -129,16 +160,17 @@ def model_decisions(
     return out
 
 
-def _padded(decisions: list[tuple[np.ndarray, np.ndarray]]) -> dict[str, np.ndarray]:
-    """Decisions as arrays: ``features (D, C, F)``, ``gains (D, C)`` and ``pad (D, C)`` bool
-    (True where a decision has fewer candidates than the most)."""
+def _padded(decisions: list[tuple[np.ndarray, np.ndarray]], models: np.ndarray) -> dict:
+    """Decisions as arrays: ``features (D, C, F)``, ``gains (D, C)``, ``pad (D, C)`` bool
+    (True where a decision has fewer candidates than the most) and ``model (D,)``, the row of
+    each decision's model."""
     width = max(len(g) for _, g in decisions)
     features = np.zeros((len(decisions), width, len(FEATURES)), np.float32)
     gains = np.zeros((len(decisions), width), np.float32)
     pad = np.ones((len(decisions), width), bool)
     for i, (f, g) in enumerate(decisions):
         features[i, : len(g)], gains[i, : len(g)], pad[i, : len(g)] = f, g, False
-    return {"features": features, "gains": gains, "pad": pad}
+    return {"features": features, "gains": gains, "pad": pad, "model": models}
 
 
 def all_decisions(keys: list[str], rows: list[int], settings: ScorerSettings):
@@ -149,7 +181,8 @@ def all_decisions(keys: list[str], rows: list[int], settings: ScorerSettings):
     else:
         with ProcessPoolExecutor(settings.workers) as pool:
             parts = list(pool.map(model_decisions, *zip(*args, strict=True)))
-    return _padded([d for part in parts for d in part])
+    models = np.concatenate([np.full(len(part), i) for i, part in enumerate(parts)])
+    return _padded([d for part in parts for d in part], models)
 
 
 def captured(scores: np.ndarray, gains: np.ndarray, pad: np.ndarray) -> float:
@@ -194,11 +227,11 @@ def _decisions_of(settings: ScorerSettings, split: str, keys: list[str], offset:
     path = settings.out_dir / DECISIONS
     plain = _plain(settings)
     meta = {"identity": dataset_identity(settings.dataset), "keys": keys,
-            "settings": {k: plain[k] for k in ("seed", "starts", "n_views", "ig_step_prob",
-                                               "oracle_step_prob")}}  # fmt: skip
+            "settings": {k: plain[k] for k in ("seed", "starts", "mixes", "n_views",
+                                               "ig_step_prob", "oracle_step_prob")}}  # fmt: skip
     stored = dict(np.load(path)) if path.exists() else {}
     if f"{split}_meta" in stored and json.loads(str(stored[f"{split}_meta"])) == meta:
-        return {k: stored[f"{split}_{k}"] for k in ("features", "gains", "pad")}
+        return {k: stored[f"{split}_{k}"] for k in ("features", "gains", "pad", "model")}
     t0 = time.perf_counter()
     made = all_decisions(keys, list(range(offset, offset + len(keys))), settings)
     log.info("%s: %d decisions of %d models in %.0f s", split, len(made["gains"]), len(keys),
@@ -234,8 +267,9 @@ def run(settings: ScorerSettings) -> dict:
     train = _decisions_of(settings, "train", keys["train"], 0)
     valid = _decisions_of(settings, "valid", keys["valid"], len(keys["train"]))
     ig_share = captured(valid["features"][..., 0], valid["gains"], valid["pad"])
-    tensors = {k: torch.from_numpy(v) for k, v in train.items()}
-    val_tensors = {k: torch.from_numpy(v) for k, v in valid.items()}
+    tensors = {k: torch.from_numpy(train[k]) for k in ("features", "gains", "pad")}
+    val_tensors = {k: torch.from_numpy(valid[k]) for k in ("features", "gains", "pad")}
+    probe = np.random.default_rng([settings.seed, 2]).permutation(len(train["gains"]))[:2000]
     torch.manual_seed(settings.seed)
     net = _network(settings)
     optimizer = torch.optim.Adam(net.parameters(), lr=settings.lr)
@@ -243,7 +277,9 @@ def run(settings: ScorerSettings) -> dict:
     info = {"settings": _plain(settings), "dataset_identity": dataset_identity(settings.dataset),
             "train_models": len(keys["train"]), "selection_keys": keys["valid"]}  # fmt: skip
     metrics = settings.out_dir / "metrics.csv"
+    by_model_file = settings.out_dir / SPEARMAN_FILE
     metrics.unlink(missing_ok=True)
+    by_model_file.unlink(missing_ok=True)
     best: dict = {}
     for epoch in range(settings.epochs):
         t0 = time.perf_counter()
@@ -261,10 +297,17 @@ def run(settings: ScorerSettings) -> dict:
         with torch.no_grad():
             val_loss = _loss(net, val_tensors, settings.weight_by_gain).item()
             val_scores = net(val_tensors["features"]).squeeze(-1).numpy()
+            probe_scores = net(tensors["features"][probe]).squeeze(-1).numpy()
         row = {"epoch": epoch + 1, "train_loss": float(np.mean(losses)), "val_loss": val_loss,
                "val_captured": captured(val_scores, valid["gains"], valid["pad"]),
-               "val_captured_ig": ig_share, "seconds": time.perf_counter() - t0}  # fmt: skip
+               "val_captured_ig": ig_share,
+               "train_spearman": spearman(probe_scores, train["gains"][probe], train["pad"][probe]),
+               "val_spearman": spearman(val_scores, valid["gains"], valid["pad"]),
+               "seconds": time.perf_counter() - t0}  # fmt: skip
         append_csv_rows(metrics, [row])
+        by_model = spearman_by_model(val_scores, valid["gains"], valid["pad"],
+                                     np.asarray(keys["valid"])[valid["model"]])  # fmt: skip
+        append_csv_rows(by_model_file, [{"epoch": epoch + 1, **r} for r in by_model])
         log.info("epoch %d: %s", epoch + 1, {k: round(v, 4) for k, v in row.items()})
         if not best or row["val_captured"] > best["val_captured"]:
             best = row

@@ -67,9 +67,10 @@ def smallest_indices(values: Tensor, k: int, chunk: int = 16) -> Tensor:
     rows = values.reshape(-1, m)
     minima = rows[:, : m // chunk * chunk].reshape(len(rows), -1, chunk).amin(-1)
     bound = minima.kthvalue(k, dim=-1, keepdim=True).values
-    below = rows <= bound
-    counts = below.sum(-1)
-    row, col = below.nonzero(as_tuple=True)
+    row, col = (rows <= bound).nonzero(as_tuple=True)
+    # Counted from the nonzero entries: summing the bool table converts it to int64 first,
+    # which took as long as the rest of the selection.
+    counts = torch.bincount(row, minlength=len(rows))
     # Pack each row's candidates to the left of a (rows, most candidates) table.
     slot = torch.arange(len(row), device=rows.device) - (counts.cumsum(0) - counts)[row]
     width = int(counts.max())

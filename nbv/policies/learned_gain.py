@@ -12,11 +12,14 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
+from nbv.geometry.camera import Intrinsics
 from nbv.planning.information_gain import view_gains
-from nbv.planning.scorer import GainScorer
+from nbv.planning.scorer import GainScorer, load_scorer
+from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import view_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
@@ -30,6 +33,15 @@ class LearnedGainPolicy(InformationGainPolicy):
     whose rays see no unknown voxel counts as ``zero_gain``."""
 
     scorer: GainScorer | None = field(default=None, kw_only=True)
+
+    @classmethod
+    def from_checkpoint(
+        cls, path: str | Path, intrinsics: Intrinsics, settings: VolumetricSettings | None = None
+    ) -> LearnedGainPolicy:
+        """The policy of the scorer file ``path`` (:func:`nbv.planning.scorer.load_scorer`;
+        ``ScorerError`` names a bad file) on the map of ``settings`` (default: ``ig``'s
+        defaults, on which the shipped scorer was trained)."""
+        return cls(settings or VolumetricSettings(), intrinsics, scorer=load_scorer(path))
 
     def __call__(self, state: EpisodeState) -> int:
         if self.scorer is None:
