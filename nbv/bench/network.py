@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from nbv.bench.timing import best_time
 from nbv.geometry.clouds import farthest_points
@@ -106,7 +107,10 @@ def episode_seconds(
     reference = plain_decider(net, n_points, policy.input, policy.lmax)
     deciders = {"ours": policy.decide, "reference": reference}
     out = {}
-    for name, decide in deciders.items():
-        network_episode(decide, views, start)  # warm-up: first calls allocate, pick kernels
-        out[name] = best_time(lambda d=decide: network_episode(d, views, start), repeat, np.inf)
+    # numpy's BLAS on one thread beside torch's, as in an evaluation worker (two pools on two
+    # cores slow the signature step several times); both sides alike.
+    with threadpool_limits(limits=1, user_api="blas"):
+        for name, decide in deciders.items():
+            network_episode(decide, views, start)  # warm-up: first calls allocate, pick kernels
+            out[name] = best_time(lambda d=decide: network_episode(d, views, start), repeat, np.inf)
     return out

@@ -288,8 +288,12 @@ def run_model(task: ModelTask) -> ModelResult:
 
 def _worker_start(threads: int) -> None:
     import torch
+    from threadpoolctl import threadpool_limits
 
     torch.set_num_threads(threads)
+    # numpy's BLAS too: with its default pool a worker ran 2 BLAS threads beside torch's on a
+    # core, and PCNBV-sph's signature step took 8x as long (0.062 s an episode, 0.008 s so).
+    threadpool_limits(limits=threads, user_api="blas")
 
 
 def worker_count(settings: EvalSettings) -> int:
@@ -389,7 +393,8 @@ def evaluate(settings: EvalSettings) -> Evaluation:
 @contextlib.contextmanager
 def _pool(workers: int, threads: int, tasks: int):
     """``map(fn, items)`` in order: in this process, or over ``workers`` spawned processes of
-    ``threads`` torch threads each (spawned: forking a process that ran OpenMP is unsafe)."""
+    ``threads`` torch and BLAS threads each (spawned: forking a process that ran OpenMP is
+    unsafe)."""
     if workers <= 1 or tasks <= 1:
         yield map
         return
