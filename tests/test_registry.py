@@ -93,6 +93,8 @@ def test_derived_lists_follow_the_entries():
     for m in METHODS.values():
         assert set(m.checks) <= set(CHECKS)
         assert len(m.style) == 2
+    # Every method has its own colour, so that the plots tell them apart.
+    assert len({m.style[0] for m in METHODS.values()}) == len(METHODS)
 
 
 def test_unknown_names_are_refused_with_the_registered_ones():

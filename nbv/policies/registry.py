@@ -223,7 +223,7 @@ IG_LEARNED = Method(
     ),  # fmt: skip
     checks=("position_noise",),
     planner=True,
-    style=("#17becf", "-"),
+    style=("#c51b7d", "--"),
 )
 
 #: Every method, in report order.
