@@ -173,7 +173,7 @@ def test_learning_curve_table_and_plot(tmp_path):
     ]
     assert _auc_by_episode(episodes, "random", "original") == {("a", 1): pytest.approx(0.6)}
     assert _auc_by_episode(episodes, "random", "permuted") == {}
-    row = {"epoch": 2, "val_original": 0.7, "val_permuted": 0.69, "auc_permuted": 0.73,
+    row = {"method": "vcnbv", "epoch": 2, "validation": "0.700 / 0.690", "auc_permuted": 0.73,
            "minus_spread_original": "+0.01", "minus_spread_permuted": "-0.00"}  # fmt: skip
     rows = [{**row, "models": m, "auc_original": 0.72 + m / 1000} for m in (8, 16, 32)]
     lines = {
@@ -182,4 +182,10 @@ def test_learning_curve_table_and_plot(tmp_path):
     _write(tmp_path, rows, lines)
     table = (tmp_path / "curve.md").read_text()
     assert table.count("\n| ") == 3 and "| 16 | 2 | 0.700 / 0.690 | 0.736 / 0.730 |" in table
+    assert "val AUC orig / perm" in table
     assert (tmp_path / "curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # A curve of ig_learned's scorer runs names its validation score.
+    _write(tmp_path, [{**r, "method": "ig_learned", "validation": "0.869 (ig 0.841)"}
+                      for r in rows], lines)  # fmt: skip
+    table = (tmp_path / "curve.md").read_text()
+    assert "val share of the best gain" in table and "| 8 | 2 | 0.869 (ig 0.841) |" in table

@@ -5,6 +5,7 @@ a real (small) training run of python -m train.scorer."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -221,6 +222,19 @@ def test_a_real_training_run_is_reproducible_and_keeps_its_decisions(tmp_path_fa
     assert (again["epoch"], again["val_captured"]) == (best["epoch"], best["val_captured"])
     assert (out / "scorer.json").read_bytes() == first
     assert (out / "decisions.npz").stat().st_mtime_ns == stamp  # kept, not made again
+    # A smaller training set holds the same decisions of the same models, and says its size.
+    small = run(replace(settings, out_dir=out / "small", max_models=3))
+    assert load_scorer(out / "small" / "scorer.json").info["train_models"] == 3 and small
+    full, part = decisions, np.load(out / "small" / "decisions.npz")
+    keys = {
+        name: json.loads(str(d["train_meta"]))["keys"]
+        for name, d in (("full", full), ("part", part))
+    }
+    assert len(keys["part"]) == 3 and set(keys["part"]) < set(keys["full"])
+    for i, key in enumerate(keys["part"]):
+        mine = part["train_gains"][part["train_model"] == i]
+        theirs = full["train_gains"][full["train_model"] == keys["full"].index(key)]
+        np.testing.assert_array_equal(mine, theirs)
     # Other decision settings make the decisions again.
     run(ScorerSettings(data, out, starts=1, mixes=0, n_views=3, epochs=1, workers=1, hidden=(4,)))
     assert np.load(out / "decisions.npz")["train_gains"].shape == (8 * 2 * 2, 32)

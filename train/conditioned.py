@@ -163,21 +163,21 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
     return {k: np.stack(v) for k, v in out.items()}
 
 
-def subset(keys: list[str], categories: list[str], settings: ConditionedSettings) -> list[str]:
+def subset(keys: list[str], categories: list[str], max_models: int, seed: int) -> list[str]:
     """The first ``max_models`` of ``keys`` taking the categories in turn, each category's
-    models in a seeded order (all of them for 0): a learning curve's smaller training sets
-    are nested and balanced."""
-    if not settings.max_models or settings.max_models >= len(keys):
+    models in an order seeded by ``seed`` (all of them for 0): a learning curve's smaller
+    training sets are nested and balanced."""
+    if not max_models or max_models >= len(keys):
         return list(keys)
-    rng = np.random.default_rng([settings.seed, 7])
+    rng = np.random.default_rng([seed, 7])
     queues = {c: [k for k, kc in zip(keys, categories, strict=True) if kc == c]
               for c in sorted(set(categories))}  # fmt: skip
     for c in queues:
         queues[c] = [queues[c][i] for i in rng.permutation(len(queues[c]))]
     out: list[str] = []
-    while len(out) < settings.max_models:
+    while len(out) < max_models:
         for c in queues:
-            if queues[c] and len(out) < settings.max_models:
+            if queues[c] and len(out) < max_models:
                 out.append(queues[c].pop(0))
     return out
 
@@ -228,7 +228,8 @@ def run(settings: ConditionedSettings) -> dict:
             f"{settings.dataset}: {len(train_keys)} train and {len(valid_keys)} valid models of "
             f"the training categories; both are needed"
         )
-    train_keys = subset(train_keys, [dataset.index[k][1] for k in train_keys], settings)
+    categories_of = [dataset.index[k][1] for k in train_keys]
+    train_keys = subset(train_keys, categories_of, settings.max_models, settings.seed)
     log.info("%d training, %d validation models", len(train_keys), len(valid_keys))
     pools = [_pool(dataset.model(k, VIEWSPACES)) for k in train_keys]
     val_pools = [_pool(dataset.model(k, VIEWSPACES)) for k in valid_keys]

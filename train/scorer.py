@@ -17,6 +17,8 @@
    loss of :mod:`train.losses` (squared error against the gains over the decision's best gain),
    each decision weighted by its best gain when ``weight_by_gain``, as AUC weighs it: the first
    picks, which gain most, count most.
+   ``max_models=N`` trains on N of the training models (the categories in turn, nested sets, as
+   ``python -m train.conditioned`` draws them): a learning curve's sizes.
 3. **Choice.** ``scorer.json`` is the epoch whose picks capture the largest share of the best
    gain on the validation decisions (``val_captured``, beside ``ig``'s own share). The unseen
    categories take no part. ``metrics.csv`` has a row per epoch (with the mean Spearman
@@ -50,6 +52,7 @@ from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, view_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.volumetric import InformationGainPolicy
+from train.conditioned import subset
 from train.loop import append_csv_rows, dataset_identity
 from train.losses import per_sample_loss
 from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
@@ -78,6 +81,7 @@ class ScorerSettings:
     lr: float = 1e-3
     weight_by_gain: bool = True
     workers: int = 2
+    max_models: int = 0
     categories: tuple[str, ...] = TRAIN_CATEGORIES
 
     def __post_init__(self) -> None:
@@ -93,6 +97,7 @@ class ScorerSettings:
             ("batch_size", self.batch_size >= 1, "an integer >= 1"),
             ("lr", self.lr > 0, "a positive number"),
             ("workers", self.workers >= 1, "an integer >= 1"),
+            ("max_models", self.max_models >= 0, "an integer >= 0 (0: every training model)"),
         ]  # fmt: skip
         for key, ok, allowed in checks:
             if not ok:
@@ -221,9 +226,10 @@ def _loss(net, batch: dict[str, torch.Tensor], weight_by_gain: bool) -> torch.Te
     return (losses * weight).sum() / weight.sum().clamp_min(1e-12)
 
 
-def _decisions_of(settings: ScorerSettings, split: str, keys: list[str], offset: int) -> dict:
-    """The decisions of ``keys``, from ``out_dir/decisions.npz`` when it was made with the same
-    settings and dataset (its ``meta`` says), else computed and added to it."""
+def _decisions_of(settings: ScorerSettings, split: str, keys: list[str], rows: list[int]) -> dict:
+    """The decisions of ``keys`` (seeded by their ``rows``), from ``out_dir/decisions.npz`` when
+    it was made with the same settings and dataset (its ``meta`` says), else computed and added
+    to it."""
     path = settings.out_dir / DECISIONS
     plain = _plain(settings)
     meta = {"identity": dataset_identity(settings.dataset), "keys": keys,
@@ -233,7 +239,7 @@ def _decisions_of(settings: ScorerSettings, split: str, keys: list[str], offset:
     if f"{split}_meta" in stored and json.loads(str(stored[f"{split}_meta"])) == meta:
         return {k: stored[f"{split}_{k}"] for k in ("features", "gains", "pad", "model")}
     t0 = time.perf_counter()
-    made = all_decisions(keys, list(range(offset, offset + len(keys))), settings)
+    made = all_decisions(keys, rows, settings)
     log.info("%s: %d decisions of %d models in %.0f s", split, len(made["gains"]), len(keys),
              time.perf_counter() - t0)  # fmt: skip
     stored.update({f"{split}_{k}": v for k, v in made.items()})
@@ -264,8 +270,15 @@ def run(settings: ScorerSettings) -> dict:
             "models of the training categories; both are needed"
         )
     settings.out_dir.mkdir(parents=True, exist_ok=True)
-    train = _decisions_of(settings, "train", keys["train"], 0)
-    valid = _decisions_of(settings, "valid", keys["valid"], len(keys["train"]))
+    # A model's decisions are seeded by its place among all training models, so the smaller
+    # training sets of a learning curve hold the same decisions of the same models.
+    every = keys["train"]
+    categories_of = [dataset.index[k][1] for k in every]
+    keys["train"] = subset(every, categories_of, settings.max_models, settings.seed)
+    train = _decisions_of(settings, "train", keys["train"], [every.index(k) for k in keys["train"]])
+    valid = _decisions_of(settings, "valid", keys["valid"],
+                          list(range(len(every), len(every) + len(keys["valid"]))))  # fmt: skip
+    log.info("%d training, %d validation models", len(keys["train"]), len(keys["valid"]))
     ig_share = captured(valid["features"][..., 0], valid["gains"], valid["pad"])
     tensors = {k: torch.from_numpy(train[k]) for k in ("features", "gains", "pad")}
     val_tensors = {k: torch.from_numpy(valid[k]) for k in ("features", "gains", "pad")}
