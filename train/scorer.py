@@ -46,7 +46,7 @@ import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES
 from nbv.config.cli import entry_point, refuse
 from nbv.config.schema import PathsConfig, register, schema_of, validated
-from nbv.dataset.records import ViewData, score_functions
+from nbv.dataset.records import ViewData, offsets_of, score_functions
 from nbv.planning.scorer import GainScorer, save_scorer
 from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, view_features
@@ -114,10 +114,10 @@ def mixed_views(views: list[ViewData], picks: np.ndarray) -> ViewData:
     return ViewData(
         poses=np.stack([view.poses[v] for view, v in chosen]),
         points=np.concatenate(points),
-        offsets=np.concatenate([[0], np.cumsum([len(p) for p in points])]),
+        offsets=offsets_of(points),
         coverage=np.stack([view.coverage[v] for view, v in chosen]),
         hull_points=np.concatenate(hulls),
-        hull_offsets=np.concatenate([[0], np.cumsum([len(h) for h in hulls])]),
+        hull_offsets=offsets_of(hulls),
         points_per_view=views[0].points_per_view,
     )
 

@@ -28,7 +28,7 @@ from tqdm import tqdm
 
 from nbv.assets.meshes import MeshError, sample_surface
 from nbv.dataset.config import ConfigError, Settings
-from nbv.dataset.records import ModelData, ViewData
+from nbv.dataset.records import ModelData, ViewData, offsets_of
 from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
 from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
 from nbv.dataset.sources import SourceModel, list_models, load_normalised
@@ -73,11 +73,6 @@ def shard_name(shard: int, num_shards: int) -> str:
     return f"shard-{shard:05d}-of-{num_shards:05d}.h5"
 
 
-def _offsets(arrays: list[np.ndarray]) -> np.ndarray:
-    """(len + 1,) int64 start offsets of arrays stored one after the other."""
-    return np.concatenate([[0], np.cumsum([len(a) for a in arrays])]).astype(np.int64)
-
-
 def view_data(
     depth: np.ndarray,
     poses: np.ndarray,
@@ -120,10 +115,10 @@ def view_data(
     return ViewData(
         poses=poses,
         points=np.concatenate(kept),
-        offsets=_offsets(kept),
+        offsets=offsets_of(kept),
         coverage=np.stack(bits),
         hull_points=np.concatenate(hulls),
-        hull_offsets=_offsets(hulls),
+        hull_offsets=offsets_of(hulls),
         points_per_view=points_per_view,
         depth=depth.astype(np.float16) if keep_depth else None,
     )

@@ -14,6 +14,12 @@ from nbv.geometry.scores import coverage_from_bits, coverage_gains, vig_gains, v
 from nbv.geometry.union import UnionHulls
 
 
+def offsets_of(arrays: list[np.ndarray]) -> np.ndarray:
+    """(len + 1,) int64 start offsets of arrays stored one after the other (``ViewData``'s
+    ``offsets`` and ``hull_offsets``)."""
+    return np.concatenate([[0], np.cumsum([len(a) for a in arrays])]).astype(np.int64)
+
+
 @dataclass
 class ViewData:
     """One model seen from one viewspace.

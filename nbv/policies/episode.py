@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nbv.dataset.records import ModelData, ViewData
+from nbv.dataset.records import ModelData, ViewData, offsets_of
 from nbv.geometry.hull import QhullFailure
 from nbv.geometry.scores import coverage_from_bits
 
@@ -172,9 +172,8 @@ def captured_state(
         coverage bits and hull vertices are empty: only the oracle would read them).
     """
     poses = np.asarray(poses, dtype=np.float64)
-    offsets = np.concatenate([[0], np.cumsum([len(p) for p in parts])]).astype(np.int64)
     view = ViewData(
-        poses=poses, points=np.concatenate(parts).astype(np.float32), offsets=offsets,
+        poses=poses, points=np.concatenate(parts).astype(np.float32), offsets=offsets_of(parts),
         coverage=np.zeros((len(poses), 1), np.uint8), hull_points=np.zeros((0, 3), np.float32),
         hull_offsets=np.zeros(len(poses) + 1, dtype=np.int64), points_per_view=points_per_view,
     )  # fmt: skip
