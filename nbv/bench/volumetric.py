@@ -12,6 +12,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from nbv.bench.timing import best_time
@@ -64,6 +66,34 @@ def numpy_traverse(
     return out[:, : max(int(counts.max(initial=0)), 1)]
 
 
+class _Rays(NamedTuple):
+    """Rays read from the map, (R, S) per voxel position."""
+
+    valid: np.ndarray  # a voxel, not padding
+    index: np.ndarray  # the voxel (0 for padding)
+    value: np.ndarray  # its log-odds (NaN: unknown)
+    unknown: np.ndarray
+    occupied: np.ndarray
+    before: np.ndarray  # before the ray's first occupied voxel
+
+    def rear(self) -> np.ndarray:
+        """(R,) bool: the voxel before the ray's first occupied one is unknown."""
+        first = np.argmax(self.occupied, axis=1)
+        rear = self.occupied.any(axis=1) & (first > 0)
+        return rear & self.unknown[np.arange(len(first)), np.maximum(first - 1, 0)]
+
+
+def _read_rays(log_odds: np.ndarray, voxels: np.ndarray) -> _Rays:
+    """The map's state along ``(R, S)`` voxel rows padded with -1."""
+    valid = voxels >= 0
+    index = np.where(valid, voxels, 0)
+    value = log_odds[index]
+    unknown = np.isnan(value) & valid
+    occupied = (value >= 0) & valid
+    before = valid & ~(np.cumsum(occupied, axis=1) > 0)
+    return _Rays(valid, index, value, unknown, occupied, before)
+
+
 def numpy_ray_gains(
     log_odds: np.ndarray,
     voxels: np.ndarray,
@@ -74,12 +104,8 @@ def numpy_ray_gains(
     """:func:`nbv.planning.information_gain.ray_gains` on whole arrays: (R,) gains
     (``frontier_mask``: the (n^3,) bool frontier the ``frontier`` metric counts; ``depth``: the
     cap of a ray's count, 0 for none)."""
-    valid = voxels >= 0
-    index = np.where(valid, voxels, 0)
-    value = log_odds[index]
-    unknown = np.isnan(value) & valid
-    occupied = (value >= 0) & valid
-    before = valid & ~(np.cumsum(occupied, axis=1) > 0)
+    rays = _read_rays(log_odds, voxels)
+    valid, index, value, unknown, _, before = rays
     if metric in ("unobserved", "frontier"):
         counted = unknown & before & (frontier_mask[index] if metric == "frontier" else True)
         count = counted.sum(axis=1).astype(float)
@@ -91,9 +117,7 @@ def numpy_ray_gains(
     weighted = np.where(valid, visibility * h, 0.0)
     if metric == "entropy":
         return weighted.sum(axis=1)
-    first = np.argmax(occupied, axis=1)
-    rear = occupied.any(axis=1) & (first > 0)
-    rear &= unknown[np.arange(len(voxels)), np.maximum(first - 1, 0)]
+    rear = rays.rear()
     if metric == "rear_side_voxel":
         return rear.astype(float)
     return np.where(rear, np.where(unknown & before, weighted, 0.0).sum(axis=1), 0.0)
@@ -103,17 +127,12 @@ def numpy_ray_features(
     log_odds: np.ndarray, voxels: np.ndarray, frontier_mask: np.ndarray, n: int
 ) -> np.ndarray:
     """:func:`nbv.planning.view_features.ray_features` on whole arrays: (R, 8)."""
-    valid = voxels >= 0
-    index = np.where(valid, voxels, 0)
-    value = log_odds[index]
-    unknown = np.isnan(value) & valid
-    occupied = (value >= 0) & valid
-    before = valid & ~(np.cumsum(occupied, axis=1) > 0)
+    rays = _read_rays(log_odds, voxels)
+    valid, index, _, unknown, occupied, before = rays
+    rear = rays.rear()
     seen = unknown & before
     count = seen.sum(axis=1).astype(float)
     meets = occupied.any(axis=1)
-    first = np.argmax(occupied, axis=1)
-    rear = meets & (first > 0) & unknown[np.arange(len(voxels)), np.maximum(first - 1, 0)]
     near = (seen & frontier_mask[index]).sum(axis=1)
     first_unknown = np.where(seen.any(axis=1), np.argmax(seen, axis=1), 0)
     free = valid & ~unknown & ~occupied & (np.arange(voxels.shape[1]) < first_unknown[:, None])
