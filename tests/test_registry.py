@@ -21,6 +21,7 @@ from nbv.policies.registry import (
     METHODS,
     NETWORK_INPUTS,
     PLANNERS,
+    SCORED,
     SHIPPED_SCORER,
     MethodContext,
     check_methods,
@@ -87,6 +88,7 @@ def test_derived_lists_follow_the_entries():
         "ig_learned",
     )  # fmt: skip
     assert [m.name for m in METHODS.values() if m.ground_truth] == ["oracle"]
+    assert SCORED == ("ig_learned",)
     assert check_methods("random_cloud") == ("pcnbv", "pcnbv_sph")
     assert check_methods("permuted_state") == ("pcnbv", "pcnbv_sph")
     assert check_methods("random_hull") == ("hull_sco",)

@@ -35,6 +35,7 @@ from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     METHODS,
     NETWORK_INPUTS,
+    SCORED,
     MethodContext,
     check_methods,
 )
@@ -335,7 +336,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         torch.set_num_threads(settings.threads)
     runnable = [m for m in settings.methods if m not in skipped]
     jobs = _jobs(settings, runnable)
-    scorer_file = settings.scorer_file() if "ig_learned" in runnable else None
+    scorer_file = settings.scorer_file() if set(SCORED) & set(runnable) else None
     scorer = load_scorer(scorer_file) if scorer_file else None
     ident = identity(
         settings,

@@ -40,6 +40,7 @@ from nbv.policies.registry import (
     HULL_SCO_REPLAN,
     METHODS,
     RANDOM,
+    SCORED,
     SPREAD,
 )
 from nbv.utils.atomic import write_text
@@ -241,13 +242,14 @@ def report_markdown(evaluation) -> str:
                if is_shipped(s.checkpoints[m]) else "")
             for m in nets
         )]  # fmt: skip
-    if "ig_learned" in methods:
+    scored = [m for m in methods if m in SCORED]
+    if scored:
         scorer = s.scorer_file()
         lines += [
             "",
-            f"Learned score: `ig_learned` from `{scorer}`"
+            "Learned score: " + ", ".join(f"`{m}`" for m in scored) + f" from `{scorer}`"
             + (" (the weights the package ships)" if is_shipped(scorer) else ""),
-        ]
+        ]  # fmt: skip
     if evaluation.skipped:
         lines += ["", "Skipped methods:"]
         lines += [f"- `{m}`: {reason}" for m, reason in evaluation.skipped.items()]

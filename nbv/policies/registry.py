@@ -80,6 +80,8 @@ class Method:
         stochastic: its picks are random by design; the evaluation averages several seeds
             per episode (``random_repeats``).
         style: matplotlib colour and line style of its curves.
+        learned_score: it ranks with the run's learned score (``MethodContext.scorer``, the
+            evaluation's ``ig_scorer``).
         paper_times: the paper's Table 1 row, stage -> seconds per 9-view reconstruction
             (FACTS.md), when the paper times this method.
     """
@@ -93,6 +95,7 @@ class Method:
     planner: bool = False
     stochastic: bool = False
     style: tuple[str, str] = ("#8c564b", "-")
+    learned_score: bool = False
     paper_times: Mapping[str, float] = field(default_factory=dict)
 
 
@@ -223,6 +226,7 @@ IG_LEARNED = Method(
     ),  # fmt: skip
     checks=("position_noise",),
     planner=True,
+    learned_score=True,
     style=("#c51b7d", "--"),
 )
 
@@ -251,6 +255,8 @@ NETWORK_INPUTS: dict[str, str] = {
 }
 #: The planner methods, in report order (the one-shot plan first: the reconstruction plot's pick).
 PLANNERS: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.planner)
+#: The methods that rank with a learned score file.
+SCORED: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.learned_score)
 
 
 def method(name: str) -> Method:
