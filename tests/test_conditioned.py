@@ -1,6 +1,8 @@
 """The viewspace-conditioned network: equivariance to the candidates' order, its checkpoints, its
 training samples, and a real (tiny) training run whose checkpoint plays both viewspaces."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 import torch
@@ -16,9 +18,13 @@ from nbv.models.conditioned import (
     load_conditioned,
     save_conditioned,
 )
+from nbv.planning.settings import VolumetricSettings
+from nbv.planning.view_features import FEATURES
 from nbv.policies.conditioned import ConditionedPolicy
-from nbv.policies.episode import run_episode
-from train.conditioned import ConditionedSettings, _pool, draw_samples, run
+from nbv.policies.episode import EpisodeState, run_episode
+from nbv.policies.volumetric import InformationGainPolicy
+from train.conditioned import VIEWSPACES, ConditionedSettings, _pool, draw_samples, run
+from train.scorer import mixed_views
 
 TINY = ConditionedConfig(point_channels=(8, 16), view_channels=(8,), visited_channels=4,
                          head_channels=(16,))  # fmt: skip
@@ -68,6 +74,39 @@ def test_checkpoint_round_trip_and_foreign_files(tmp_path):
         load_conditioned(tmp_path / "missing.pt")
 
 
+def test_map_features_join_each_candidates_head():
+    torch.manual_seed(0)
+    net = ViewConditionedNet(replace(TINY, map_features=3)).eval()
+    points, directions, state = _inputs(np.random.default_rng(1))
+    features = torch.rand(3, 7, 3)
+    with pytest.raises(ValueError, match="reads 3 map features per candidate; got features of "
+                                         "shape None"):  # fmt: skip
+        net(points, directions, state)
+    with pytest.raises(ValueError, match=r"shape \(3, 7, 2\)"):
+        net(points, directions, state, features[..., :2])
+    with pytest.raises(ValueError, match="reads 0 map features"):
+        ViewConditionedNet(TINY)(points, directions, state, features)
+    order = torch.tensor([4, 2, 6, 0, 1, 5, 3])
+    changed = features.clone()
+    changed[:, 5] += 1.0
+    with torch.no_grad():
+        scores = net(points, directions, state, features)
+        shuffled = net(points, directions[:, order], state[:, order], features[:, order])
+        moved = net(points, directions, state, changed)
+    torch.testing.assert_close(shuffled, scores[:, order])
+    # A candidate's features change its own score only.
+    torch.testing.assert_close(moved[:, :5], scores[:, :5])
+    torch.testing.assert_close(moved[:, 6:], scores[:, 6:])
+    assert (moved[:, 5] != scores[:, 5]).all()
+    # Checkpoints keep the width; a config written before the option reads as none.
+    assert (
+        ConditionedConfig.from_dict(
+            {k: v for k, v in TINY.to_dict().items() if k != "map_features"}
+        )
+        == TINY
+    )
+
+
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     return make_train_dataset(tmp_path_factory.mktemp("conditioned"))
@@ -75,7 +114,7 @@ def dataset(tmp_path_factory):
 
 def test_samples_hold_the_true_gains_of_a_turned_scene(dataset):
     ds = nbv.dataset.open(dataset)
-    pool = _pool(ds.model(ds.keys(split="train")[0]))
+    pool = _pool(ds.model(ds.keys(split="train")[0]), ds.intrinsics)
     assert len(pool.directions) == 66
     settings = ConditionedSettings(dataset, dataset / "x", trajectories=3, steps=4, candidates=12,
                                    train_points=50)  # fmt: skip
@@ -104,6 +143,41 @@ def test_samples_hold_the_true_gains_of_a_turned_scene(dataset):
     assert len(turns) == 3  # every trajectory its own turn
 
 
+def test_training_map_features_are_those_the_policy_reads(dataset):
+    """The samples' map features (the pool's views traced once, a map per trajectory) equal
+    the policy's (ig's incremental map of an episode on the same viewspace)."""
+    ds = nbv.dataset.open(dataset)
+    model = ds.model(ds.keys(split="train")[1], VIEWSPACES)
+    settings = ConditionedSettings(dataset, dataset / "x", trajectories=2, steps=5, candidates=12,
+                                   train_points=50, map_features=True)  # fmt: skip
+    pool = _pool(model, ds.intrinsics, VolumetricSettings())
+    samples = draw_samples([pool], settings, np.random.default_rng(3))
+    plain = draw_samples([_pool(model, ds.intrinsics)], replace(settings, map_features=False),
+                         np.random.default_rng(3))  # fmt: skip
+    assert set(samples) == set(plain) | {"features"}
+    for k, v in plain.items():  # the option adds features and changes nothing else
+        np.testing.assert_array_equal(samples[k], v)
+    assert samples["features"].shape == (10, 12, len(FEATURES))
+    net = ViewConditionedNet(replace(TINY, map_features=len(FEATURES))).eval()
+    stored = [model.views[name] for name in VIEWSPACES]
+    n0 = len(stored[0].poses)
+    for first in (0, 5):  # each trajectory's five samples
+        pick = samples["pick"][first]
+        model.views["mix"] = mixed_views(stored, np.stack([pick // n0, pick % n0], axis=1))
+        policy = ConditionedPolicy(net).fresh(
+            InformationGainPolicy(VolumetricSettings(), ds.intrinsics)
+        )
+        order: list[int] = []
+        for i in range(first, first + 5):
+            state = samples["view_state"][i]
+            order += [int(v) for v in np.flatnonzero(state) if v not in order]
+            got = policy.map_features(EpisodeState(model, "mix", state.copy(), list(order)))
+            np.testing.assert_allclose(samples["features"][i], got, atol=1e-6)
+            assert (got[state] == 0).all() and got[~state, 0].max() == 1.0
+    with pytest.raises(ValueError, match="reads map features: build its policy with fresh"):
+        ConditionedPolicy(net).map_features(EpisodeState(model, "mix", state, order))
+
+
 def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
     settings = ConditionedSettings(
         dataset, tmp_path / "run", epochs=2, trajectories=1, steps=3, train_points=64,
@@ -125,6 +199,32 @@ def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
         assert len(set(episode.views)) == 10
     # Resuming a finished run trains nothing more and gives the same result.
     assert run(settings)["last"] == result["last"]
+
+
+def test_a_real_training_run_with_map_features(dataset, tmp_path):
+    from nbv.eval.config import EvalSettings
+    from nbv.eval.evaluate import load_networks
+    from nbv.policies.registry import METHODS, MethodContext
+
+    settings = ConditionedSettings(
+        dataset, tmp_path / "run", epochs=1, trajectories=1, steps=3, train_points=64,
+        eval_points=64, start_views=(1,), net=TINY, map_features=True,
+    )  # fmt: skip
+    assert np.isfinite(run(settings)["last"]["val_spearman"])
+    best = tmp_path / "run" / "best.pt"
+    assert load_conditioned(best)[0].config.map_features == len(FEATURES)
+    eval_settings = EvalSettings(out_dir=tmp_path / "e", methods=("vcnbv_map",),
+                                 checkpoints={"vcnbv_map": str(best)})  # fmt: skip
+    networks, skipped = load_networks(eval_settings, 33)
+    assert not skipped and networks["vcnbv_map"].reads_map
+    ds = nbv.dataset.open(dataset)
+    ctx = MethodContext(networks, None, ds.intrinsics, 0.01, 10)
+    model = ds.model(ds.keys(split="valid")[0])
+    for viewspace in ("original", "permuted"):
+        policy = METHODS["vcnbv_map"].build(ctx, np.random.default_rng(0))
+        episode = run_episode(model, viewspace, 1, policy)
+        assert len(set(episode.views)) == 10
+        assert len(policy.timings["map"]) == 9
 
 
 def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset):
@@ -151,11 +251,11 @@ def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset
     episode = run_episode(ds.model(ds.keys(split="valid")[0]), "permuted", 3, policy)
     assert len(set(episode.views)) == 10
     missing = str(tmp_path / "no.pt")
-    checkpoints = {"vcnbv": missing, "pcnbv": missing, "pcnbv_sph": missing}
+    checkpoints = {"vcnbv": missing, "vcnbv_map": missing, "pcnbv": missing, "pcnbv_sph": missing}
     settings = EvalSettings(out_dir=tmp_path / "e", checkpoints=checkpoints)
     replaced = with_shipped_weights(settings).checkpoints
     assert replaced["vcnbv"] == str(path)
-    for method in ("pcnbv", "pcnbv_sph"):  # shipped ones replace a missing one, or none do
+    for method in ("pcnbv", "pcnbv_sph", "vcnbv_map"):  # shipped ones replace a missing one
         assert replaced[method] == str(shipped_weights(method) or missing)
     kept = EvalSettings(
         out_dir=tmp_path / "e", checkpoints={**replaced, "vcnbv": str(tmp_path / "shipped.pt")}

@@ -60,17 +60,20 @@ def save_tiny_checkpoint(
 ) -> Path:
     """An untrained tiny PCNBV saved the way training saves one (``extra``: input, lmax,
     eval_points, and the models that chose it); ``input="directions"``: a tiny
-    viewspace-conditioned network the way train.conditioned saves one."""
+    viewspace-conditioned network the way train.conditioned saves one (``"directions_map"``:
+    one that reads map features)."""
     import torch
 
     from nbv.models.checkpoints import save_checkpoint
     from nbv.models.conditioned import ConditionedConfig, ViewConditionedNet, save_conditioned
     from nbv.models.config import PCNBVConfig
     from nbv.models.pcnbv import PCNBV
+    from nbv.planning.view_features import FEATURES
 
     torch.manual_seed(seed)
-    if input == "directions":
-        config = ConditionedConfig((8, 16), (8,), 4, (16,))
+    if input.startswith("directions"):
+        width = len(FEATURES) if input == "directions_map" else 0
+        config = ConditionedConfig((8, 16), (8,), 4, (16,), map_features=width)
         extra = {"eval_points": 64, "selection_keys": selection_keys or []}
         save_conditioned(path, ViewConditionedNet(config).eval(), extra)
         return path
@@ -97,8 +100,11 @@ def networks(tmp_path_factory):
         name: NetworkPolicy.from_checkpoint(save_tiny_checkpoint(tmp / f"{name}.pt", name), 33)
         for name in ("points", "signature")
     }
-    path = save_tiny_checkpoint(tmp / "directions.pt", "directions")
-    return {**nets, "directions": ConditionedPolicy.from_checkpoint(path)}
+    conditioned = {
+        name: ConditionedPolicy.from_checkpoint(save_tiny_checkpoint(tmp / f"{name}.pt", name))
+        for name in ("directions", "directions_map")
+    }
+    return {**nets, **conditioned}
 
 
 #: The information-gain planner on the small camera: coarse voxels, 4-pixel background blocks.
@@ -116,6 +122,9 @@ def all_policies(networks, seed: int = 0) -> dict:
         "pcnbv": networks["points"].fresh(),
         "pcnbv_sph": networks["signature"].fresh(),
         "vcnbv": networks["directions"].fresh(),
+        "vcnbv_map": networks["directions_map"].fresh(
+            InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+        ),
         "hull_sco": HullSCOPolicy(rng(seed), **hull),
         "hull_sco_sph": HullSCOPolicy(
             rng(seed),
@@ -344,7 +353,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
     # it has not captured would pick otherwise on the blinded model.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 12
+    assert len(names) == 13
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])

@@ -78,11 +78,12 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
 
 def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
-        "random", "spread", "oracle", "pcnbv", "pcnbv_sph", "vcnbv",
+        "random", "spread", "oracle", "pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map",
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig",
         "hull_ig", "ig_learned",
     ]  # fmt: skip
-    assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "vcnbv": "directions"}
+    assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "vcnbv": "directions",
+                              "vcnbv_map": "directions"}  # fmt: skip
     assert PLANNERS == (
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig", "hull_ig",
         "ig_learned",

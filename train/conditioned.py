@@ -15,6 +15,11 @@ viewspaces (66 directions with their true coverage bits) are the pool:
    sample is stored (cloud: ``train_points`` random points of the visited views' stored points,
    the directions, the view state and the true gains of the candidates).
 
+With ``map_features=true`` (the ``vcnbv_map`` variant) a sample also holds each unvisited
+candidate's map features (:func:`nbv.planning.view_features.view_features`) on the occupancy map
+of ``ig`` (its default settings) of the visited views, built in the model's own frame: the
+features are counts along rays and angles, which the turn of step 2 leaves unchanged.
+
 Every epoch draws new samples from ``(seed, epoch)``. The checkpoint kept as ``best.pt`` has the
 best mean validation AUC over the ``original`` and ``permuted`` viewspaces, on the *valid* split
 of the training categories; the unseen categories take no part. ``out_dir`` gets ``best.pt``,
@@ -25,7 +30,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import hydra
@@ -38,6 +43,7 @@ from nbv.assets.categories import TRAIN_CATEGORIES
 from nbv.config.cli import entry_point, refuse
 from nbv.config.schema import PathsConfig, ProtocolConfig, register, schema_of, validated
 from nbv.dataset.records import ModelData
+from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import coverage_gains
 from nbv.models.conditioned import (
     ConditionedConfig,
@@ -45,8 +51,13 @@ from nbv.models.conditioned import (
     load_conditioned,
     save_conditioned,
 )
+from nbv.planning.information_gain import candidate_voxels
+from nbv.planning.occupancy import OccupancyMap
+from nbv.planning.settings import VolumetricSettings
+from nbv.planning.view_features import FEATURES, view_features
 from nbv.policies.conditioned import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
+from nbv.policies.volumetric import InformationGainPolicy
 from nbv.utils.selection import masked_argmax
 from train.loop import append_csv_rows
 from train.losses import LOSSES, batch_loss
@@ -76,6 +87,7 @@ class ConditionedSettings:
     eval_points: int = 256
     threads: int = 0
     max_models: int = 0
+    map_features: bool = False
     start_views: tuple[int, ...] = DEFAULT_START_VIEWS
     categories: tuple[str, ...] = TRAIN_CATEGORIES
     net: ConditionedConfig = field(default_factory=ConditionedConfig)
@@ -99,22 +111,58 @@ class ConditionedSettings:
 
 @dataclass(frozen=True)
 class _Pool:
-    """One model's views of both viewspaces: directions, coverage bits, stored points."""
+    """One model's views of both viewspaces: directions, coverage bits, stored points; for map
+    features also each view's effect on the map (``seen``,
+    :meth:`OccupancyMap.captured_voxels`) and its rays' voxels as a candidate (``rays``)."""
 
     directions: np.ndarray  # (P, 3) unit
     bits: np.ndarray  # (P, bytes)
     points: list[np.ndarray]  # P arrays (n_v, 3)
     n_gt: int
+    positions: np.ndarray  # (P, 3) camera centres
+    seen: list[tuple[np.ndarray, np.ndarray]] | None = None
+    rays: np.ndarray | None = None  # (P, R, S)
 
 
-def _pool(model: ModelData) -> _Pool:
+def _pool(
+    model: ModelData, intrinsics: Intrinsics, volumetric: VolumetricSettings | None = None
+) -> _Pool:
+    """The pool of ``model``; with the map's ``volumetric`` settings, its map data too."""
     views = [model.views[name] for name in VIEWSPACES]
+    poses = np.concatenate([v.poses for v in views])
+    points = [v.view_points(i) for v in views for i in range(len(v.poses))]
+    seen, rays = None, None
+    if volumetric is not None:
+        grid = OccupancyMap(volumetric.occupancy())
+        seen = [grid.captured_voxels(p, pose, intrinsics, volumetric.block)
+                for p, pose in zip(points, poses, strict=True)]  # fmt: skip
+        rays = candidate_voxels(poses, intrinsics, volumetric.columns, volumetric.occupancy())
     return _Pool(
-        directions=np.concatenate([unit_directions(v.poses[:, :3, 3]) for v in views]),
+        directions=unit_directions(poses[:, :3, 3]),
         bits=np.concatenate([v.coverage for v in views]),
-        points=[v.view_points(i) for v in views for i in range(len(v.poses))],
+        points=points,
         n_gt=len(model.gt_points),
+        positions=poses[:, :3, 3],
+        seen=seen,
+        rays=rays,
     )
+
+
+def _map_features(
+    pool: _Pool, pick: np.ndarray, order: list[int], occupancy: OccupancyMap
+) -> np.ndarray:
+    """(C, len(FEATURES)) float32 map features of a trajectory's candidates ``pick`` (rows of
+    the pool) once the views ``order`` (indices into ``pick``) are captured: ``occupancy`` (the
+    trajectory's map, given all but the last of ``order`` before) takes the last one; zeros for
+    the visited candidates."""
+    occupancy.apply_view(pool.seen[pick[order[-1]]])
+    state = np.zeros(len(pick), bool)
+    state[order] = True
+    open_ = np.flatnonzero(~state)
+    out = np.zeros((len(pick), len(FEATURES)), np.float32)
+    out[open_] = view_features(occupancy, pool.rays[pick[open_]], pool.positions[pick], order,
+                               open_)  # fmt: skip
+    return out
 
 
 def _turn(rng: np.random.Generator) -> np.ndarray:
@@ -128,10 +176,11 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
     """An epoch's samples (see the module docstring): arrays ``points (S, n, 3)``,
     ``directions (S, C, 3)``, ``view_state (S, C)`` bool, ``target (S, C)`` float32 and
     ``pick (S, C)``, the candidates' rows in their model's pool, and ``model (S,)``, the
-    sample's index in ``pools``."""
-    out: dict[str, list] = {
-        k: [] for k in ("points", "directions", "view_state", "target", "pick", "model")
-    }
+    sample's index in ``pools``; with ``settings.map_features`` also ``features (S, C, F)``
+    float32."""
+    keys = ["points", "directions", "view_state", "target", "pick", "model"]
+    out: dict[str, list] = {k: [] for k in keys + ["features"] * settings.map_features}
+    grid = VolumetricSettings().occupancy()
     for row, pool in enumerate(pools):
         for _ in range(settings.trajectories):
             pick = rng.choice(len(pool.directions), settings.candidates, replace=False)
@@ -141,8 +190,10 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
             seen = [i for i, p in enumerate(pick) if len(pool.points[p])]
             if not seen:
                 continue
+            order = [int(rng.choice(seen))]
             state = np.zeros(settings.candidates, bool)
-            state[rng.choice(seen)] = True
+            state[order] = True
+            occupancy = OccupancyMap(grid) if settings.map_features else None
             for _ in range(min(settings.steps, settings.candidates - 1)):
                 gains = coverage_gains(bits, state, pool.n_gt).astype(np.float32)
                 cloud = np.concatenate([pool.points[p] for p in pick[state]])
@@ -155,11 +206,14 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
                 out["target"].append(gains)
                 out["pick"].append(pick)
                 out["model"].append(row)
+                if occupancy is not None:
+                    out["features"].append(_map_features(pool, pick, order, occupancy))
                 if rng.random() < settings.random_step_prob:
                     nxt = int(rng.choice(np.flatnonzero(~state)))
                 else:
                     nxt = masked_argmax(gains, state)
                 state[nxt] = True
+                order.append(int(nxt))
     return {k: np.stack(v) for k, v in out.items()}
 
 
@@ -182,11 +236,14 @@ def subset(keys: list[str], categories: list[str], max_models: int, seed: int) -
     return out
 
 
-def _tensors(samples: dict, index: np.ndarray) -> list[torch.Tensor]:
-    return [
+def _tensors(samples: dict, index: np.ndarray) -> list[torch.Tensor | None]:
+    """``points, directions, view_state, target, features`` of the samples ``index``
+    (``features`` None without map features)."""
+    out = [
         torch.from_numpy(samples[k][index].astype(np.float32))
         for k in ("points", "directions", "view_state", "target")
     ]
+    return out + [torch.from_numpy(samples["features"][index]) if "features" in samples else None]
 
 
 def _predict(model, samples: dict, batch_size: int) -> np.ndarray:
@@ -194,22 +251,27 @@ def _predict(model, samples: dict, batch_size: int) -> np.ndarray:
     preds = []
     with torch.no_grad():
         for start in range(0, len(samples["points"]), batch_size):
-            x, d, s, _ = _tensors(
+            x, d, s, _, f = _tensors(
                 samples, np.arange(start, min(start + batch_size, len(samples["points"])))
             )
-            preds.append(model(x, d, s).numpy())
+            preds.append(model(x, d, s, f).numpy())
     return np.concatenate(preds)
 
 
 def _validation_auc(model, dataset, keys: list[str], settings: ConditionedSettings) -> dict:
     policy = ConditionedPolicy(model, settings.eval_points)
+    traced: dict = {}
     result = {}
     for name in VIEWSPACES:
         curves = [
-            run_episode(dataset.model(key, (name,)), name, int(start), policy.fresh()).coverage
+            run_episode(
+                dataset.model(key, (name,)), name, int(start),
+                policy.fresh(InformationGainPolicy(VolumetricSettings(), dataset.intrinsics,
+                                                   traced=traced)),
+            ).coverage
             for key in keys
             for start in settings.start_views
-        ]
+        ]  # fmt: skip
         result[f"val_auc_{name}"] = auc(np.mean(curves, axis=0))
     return result
 
@@ -231,11 +293,18 @@ def run(settings: ConditionedSettings) -> dict:
     categories_of = [dataset.index[k][1] for k in train_keys]
     train_keys = subset(train_keys, categories_of, settings.max_models, settings.seed)
     log.info("%d training, %d validation models", len(train_keys), len(valid_keys))
-    pools = [_pool(dataset.model(k, VIEWSPACES)) for k in train_keys]
-    val_pools = [_pool(dataset.model(k, VIEWSPACES)) for k in valid_keys]
+    volumetric = VolumetricSettings() if settings.map_features else None
+    t0 = time.perf_counter()
+    pools = [_pool(dataset.model(k, VIEWSPACES), dataset.intrinsics, volumetric)
+             for k in train_keys]  # fmt: skip
+    val_pools = [_pool(dataset.model(k, VIEWSPACES), dataset.intrinsics, volumetric)
+                 for k in valid_keys]  # fmt: skip
+    log.info("views of %d models read in %.0f s", len(pools) + len(val_pools),
+             time.perf_counter() - t0)  # fmt: skip
     val_samples = draw_samples(val_pools, settings, np.random.default_rng([settings.seed, 10**6]))
     torch.manual_seed(settings.seed)
-    model = ViewConditionedNet(settings.net)
+    net = replace(settings.net, map_features=len(FEATURES) if settings.map_features else 0)
+    model = ViewConditionedNet(net)
     optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
     out = settings.out_dir
     out.mkdir(parents=True, exist_ok=True)
@@ -244,7 +313,7 @@ def run(settings: ConditionedSettings) -> dict:
         list(plain["start_views"]),
         list(plain["categories"]),
     )
-    plain["net"] = settings.net.to_dict()
+    plain["net"] = net.to_dict()
     rows, best, first = [], -np.inf, 0
     last = out / "last.pt"
     if last.exists():
@@ -266,9 +335,9 @@ def run(settings: ConditionedSettings) -> dict:
         model.train()
         losses = []
         for i in range(0, len(order), settings.batch_size):
-            x, d, s, t = _tensors(samples, order[i : i + settings.batch_size])
+            x, d, s, t, f = _tensors(samples, order[i : i + settings.batch_size])
             optimizer.zero_grad()
-            loss = batch_loss(settings.loss, model(x, d, s), t, s)
+            loss = batch_loss(settings.loss, model(x, d, s, f), t, s)
             loss.backward()
             optimizer.step()
             losses.append(loss.item())

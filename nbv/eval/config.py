@@ -77,6 +77,7 @@ class EvalSettings:
             "pcnbv": "outputs/train/pcnbv_coverage_fold0/best.pt",
             "pcnbv_sph": "outputs/train/pcnbv_sph_coverage_fold0/best.pt",
             "vcnbv": "outputs/train/vcnbv/best.pt",
+            "vcnbv_map": "outputs/train/vcnbv_map/best.pt",
         }
     )
     hull: PlannerSettings = field(default_factory=PlannerSettings)

@@ -10,6 +10,9 @@ other directions means nothing to it. This network scores each candidate *from i
   and max-pooled: what the cloud looks like from ``d``;
 * the visited directions enter through the candidate's largest and mean cosine to them and the
   mean of a small MLP of them;
+* with ``map_features > 0`` (the ``vcnbv_map`` variant), each candidate's numbers of what its
+  rays would see on an occupancy map of the captured views
+  (:func:`nbv.planning.view_features.view_features`) join its features;
 * a head maps the joined features of each candidate to its score.
 
 Any number of candidates in any order: inputs ``(B, N, 3)`` points, ``(B, V, 3)`` unit
@@ -42,6 +45,8 @@ class ConditionedConfig:
     view_channels: tuple[int, ...] = (32, 32)
     visited_channels: int = 32
     head_channels: tuple[int, ...] = (128, 64)
+    #: Map features per candidate the head also reads (0: the cloud and directions only).
+    map_features: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         """Plain values for a checkpoint."""
@@ -76,10 +81,12 @@ class ViewConditionedNet(nn.Module):
         self.view_axis = nn.Linear(2, c.view_channels[0])
         self.view = _mlp(list(c.view_channels))
         self.visited = _mlp([3, c.visited_channels])
-        joined = width + c.view_channels[-1] + 3 + 2 + c.visited_channels
+        joined = width + c.view_channels[-1] + 3 + 2 + c.visited_channels + c.map_features
         self.head = _mlp([joined, *c.head_channels, 1], last_activation=False)
 
-    def forward(self, points: Tensor, directions: Tensor, view_state: Tensor) -> Tensor:
+    def forward(
+        self, points: Tensor, directions: Tensor, view_state: Tensor, features: Tensor | None = None
+    ) -> Tensor:
         """Scores of every candidate.
 
         Args:
@@ -87,10 +94,19 @@ class ViewConditionedNet(nn.Module):
             directions: (B, V, 3) float unit candidate directions (camera positions over their
                 norm).
             view_state: (B, V) 0/1, 1 = visited; a sample needs at least one visited view.
+            features: (B, V, config.map_features) float map features of the candidates (any
+                value for visited ones); required when ``config.map_features > 0``, else None.
 
         Returns:
             (B, V) float scores.
         """
+        want = self.config.map_features
+        got = None if features is None else tuple(features.shape)
+        if (want == 0) != (features is None) or (want and got != (*view_state.shape, want)):
+            raise ValueError(
+                f"this network reads {want} map features per candidate; got features of shape "
+                f"{got} for a view state of shape {tuple(view_state.shape)}"
+            )
         feats = self.points(points)  # (B, N, W)
         global_ = feats.amax(dim=1)  # (B, W)
         depth = torch.einsum("bnc,bvc->bvn", points, directions)  # (B, V, N)
@@ -112,6 +128,7 @@ class ViewConditionedNet(nn.Module):
                 nearest[..., None],
                 mean_cos[..., None],
                 pooled[:, None].expand(b, v, pooled.shape[-1]),
+                *([] if features is None else [features.to(points.dtype)]),
             ],
             dim=-1,
         )

@@ -198,6 +198,15 @@ class OccupancyMap:
             crossed[rays[rays >= 0]] = True
         return np.flatnonzero(crossed & ~hit), np.flatnonzero(hit)
 
+    def captured_voxels(
+        self, points: np.ndarray, pose: np.ndarray, intrinsics: Intrinsics, block: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`view_voxels` of a captured view: rays from the camera centre of ``pose``
+        (4, 4) to its ``points`` (N, 3), and along its background blocks
+        (:func:`background_directions` of ``block`` pixels) that hit nothing."""
+        misses = background_directions(points, pose, intrinsics, block)
+        return self.view_voxels(np.asarray(pose)[:3, 3], points, misses)
+
     def apply_view(self, voxels: tuple[np.ndarray, np.ndarray]) -> None:
         """Update the map by a view's :meth:`view_voxels`: misses, then hits."""
         free, occupied = voxels

@@ -156,13 +156,31 @@ PCNBV_SPH = Method(
     style=("#17becf", "-"),
     paper_times={"signature": 2.53, "network": 0.02, "total": 2.55, "online": 2.55},
 )
+
+
+def _conditioned(name: str) -> Callable[[MethodContext, np.random.Generator], Policy]:
+    """A fresh policy of the viewspace-conditioned checkpoint of method ``name``, with a fresh
+    occupancy map of the run's ``ig`` settings (read only by a network of map features)."""
+    return lambda ctx, rng: ctx.networks[name].fresh(
+        InformationGainPolicy(ctx.volumetric, ctx.intrinsics, traced=ctx.traced)
+    )
+
+
 VCNBV = Method(
     "vcnbv",
     "the viewspace-conditioned network: scores each candidate from its direction (a checkpoint "
     "of train.conditioned)",
-    lambda ctx, rng: ctx.networks["vcnbv"].fresh(),
+    _conditioned("vcnbv"),
     network_input="directions",
     style=("#393b79", "-"),
+)
+VCNBV_MAP = Method(
+    "vcnbv_map",
+    "vcnbv whose head also reads each candidate's map features on ig's occupancy map (a "
+    "checkpoint of train.conditioned map_features=true)",
+    _conditioned("vcnbv_map"),
+    network_input="directions",
+    style=("#6b6ecf", "--"),
 )
 HULL_SCO = Method(
     "hull_sco",
@@ -240,6 +258,7 @@ METHODS: dict[str, Method] = {
         PCNBV,
         PCNBV_SPH,
         VCNBV,
+        VCNBV_MAP,
         HULL_SCO,
         HULL_SCO_SPH,
         HULL_SCO_PROBES,

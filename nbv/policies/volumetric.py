@@ -17,7 +17,7 @@ import numpy as np
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.planning.information_gain import candidate_voxels, view_gains
-from nbv.planning.occupancy import OccupancyMap, background_directions
+from nbv.planning.occupancy import OccupancyMap
 from nbv.planning.settings import VolumetricSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
@@ -71,8 +71,9 @@ class InformationGainPolicy:
         if key not in kept:
             if len(kept) >= 4 * 66:  # about two models' views of both viewspaces
                 kept.clear()
-            misses = background_directions(points, pose, self.intrinsics, self.settings.block)
-            kept[key] = self.occupancy.view_voxels(pose[:3, 3], points, misses)
+            kept[key] = self.occupancy.captured_voxels(
+                points, pose, self.intrinsics, self.settings.block
+            )
         return kept[key]
 
     def candidate_voxels(self, poses: np.ndarray) -> np.ndarray:
