@@ -203,6 +203,7 @@ def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
 
 def test_a_real_training_run_with_map_features(dataset, tmp_path):
     from nbv.eval.config import EvalSettings
+    from nbv.eval.curve import _learner
     from nbv.eval.evaluate import load_networks
     from nbv.policies.registry import METHODS, MethodContext
 
@@ -213,6 +214,10 @@ def test_a_real_training_run_with_map_features(dataset, tmp_path):
     assert np.isfinite(run(settings)["last"]["val_spearman"])
     best = tmp_path / "run" / "best.pt"
     assert load_conditioned(best)[0].config.map_features == len(FEATURES)
+    assert _learner(tmp_path / "run")[:2] == (
+        "vcnbv_map",
+        {"checkpoints": {"vcnbv_map": str(best)}},
+    )
     eval_settings = EvalSettings(out_dir=tmp_path / "e", methods=("vcnbv_map",),
                                  checkpoints={"vcnbv_map": str(best)})  # fmt: skip
     networks, skipped = load_networks(eval_settings, 33)

@@ -435,3 +435,17 @@ def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):
     assert episode.views[1 : 1 + len(covering)] == covering
     assert hybrid.gain.integrated == episode.views[:-1][: len(hybrid.gain.integrated)]
     assert hybrid.counts["planned"] == len(covering) + hybrid.gain.counts["planned"] == 9
+
+
+def test_a_bfloat16_checkpoint_runs_in_bfloat16_only_where_the_cpu_has_it(tmp_path):
+    from nbv.models.checkpoints import load_checkpoint, save_checkpoint
+
+    path = save_tiny_checkpoint(tmp_path / "net.pt")
+    net, extra = load_checkpoint(path, n_views=33)
+    for trained, runs in (("bf16", "auto"), ("fp32", "fp32")):
+        save_checkpoint(tmp_path / f"{trained}.pt", net, {**extra, "precision": trained})
+        policy = NetworkPolicy.from_checkpoint(tmp_path / f"{trained}.pt", 33)
+        assert policy.precision == runs
+        assert NetworkPolicy.from_checkpoint(tmp_path / f"{trained}.pt", 33, "bf16").precision == (
+            "bf16"
+        )

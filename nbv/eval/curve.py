@@ -2,13 +2,13 @@
 learner over the number of training models.
 
 Each run folder is a ``python -m train.conditioned`` run (``max_models=N``; its ``best.pt`` plays
-as ``vcnbv``) or a ``python -m train.scorer`` run (its ``scorer.json`` plays as ``ig_learned``);
-the folders of one curve are of one kind. Each plays the unseen categories on both viewspaces
-(``nbv.eval``, the same episodes as ``make eval``), and random, spread and the oracle play them
-once, as horizontal lines. Written to ``--out``: ``curve.md`` (a table: models, chosen epoch, the
-validation score the run chose by, unseen AUC, minus spread with a 95 % interval, models
-resampled), ``curve.png`` and the evaluations themselves (``eval_*``; rerunning reuses what they
-hold).
+as ``vcnbv``, or as ``vcnbv_map`` when it reads map features) or a ``python -m train.scorer`` run
+(its ``scorer.json`` plays as ``ig_learned``); the folders of one curve are of one kind. Each
+plays the unseen categories on both viewspaces (``nbv.eval``, the same episodes as ``make
+eval``), and random, spread and the oracle play them once, as horizontal lines. Written to
+``--out``: ``curve.md`` (a table: models, chosen epoch, the validation score the run chose by,
+unseen AUC, minus spread with a 95 % interval, models resampled), ``curve.png`` and the
+evaluations themselves (``eval_*``; rerunning reuses what they hold).
 """
 
 from __future__ import annotations
@@ -64,9 +64,10 @@ def _learner(run: Path) -> tuple[str, dict, dict]:
             "models": int(info["train_models"]), "epoch": int(info["epoch"]),
             "validation": f"{info['val_captured']:.3f} (ig {info['val_captured_ig']:.3f})",
         }  # fmt: skip
-    _, extra = load_conditioned(run / "best.pt")
+    net, extra = load_conditioned(run / "best.pt")
     chosen = extra["rows"][int(extra["epoch"])]
-    return "vcnbv", {"checkpoints": {"vcnbv": str(run / "best.pt")}}, {
+    method = "vcnbv_map" if net.config.map_features else "vcnbv"
+    return method, {"checkpoints": {method: str(run / "best.pt")}}, {
         "models": int(extra.get("train_models") or extra["settings"].get("max_models") or 32),
         "epoch": int(extra["epoch"]) + 1,
         "validation": f"{chosen['val_auc_original']:.3f} / {chosen['val_auc_permuted']:.3f}",
@@ -106,7 +107,7 @@ def _write(out: Path, rows: list[dict], lines: dict[str, float]) -> None:
     import matplotlib.pyplot as plt
 
     method = rows[0]["method"]
-    validation = ("val AUC orig / perm" if method == "vcnbv"
+    validation = ("val AUC orig / perm" if method.startswith("vcnbv")
                   else "val share of the best gain")  # fmt: skip
     table = md_table(
         ["training models", "epoch", validation, "unseen AUC orig / perm",
