@@ -229,3 +229,18 @@ def test_the_frontier_is_the_unknown_ring_around_occupied_voxels():
     occupancy.log_odds[(5 * n + 5) * n + 6] = -1.0  # a free neighbour
     ring = frontier(occupancy).reshape(n, n, n)
     assert ring.sum() == 25 and ring[4:7, 4:7, 4:7].sum() == 25
+
+
+def test_the_frontier_is_scipys_dilation_of_the_occupied_voxels():
+    from scipy import ndimage
+
+    occupancy = OccupancyMap(OccupancySettings(resolution=0.1, bound=0.5, object_radius=None))
+    n = occupancy.settings.n
+    rng = np.random.default_rng(4)
+    for share in (0.0, 0.02, 0.2):
+        values = rng.choice([np.nan, -1.0, 0.0, 1.0], size=n**3, p=[0.6, 0.4 - share, 0, share])
+        values[[0, n - 1, n**3 - 1]] = 1.0  # corners and edges: neighbours off the grid
+        occupancy.log_odds[:] = values
+        grid = values.reshape(n, n, n)
+        near = ndimage.binary_dilation(grid >= 0, structure=np.ones((3, 3, 3), bool))
+        np.testing.assert_array_equal(frontier(occupancy), (near & np.isnan(grid)).ravel())

@@ -331,6 +331,8 @@ def run(settings: ConditionedSettings) -> dict:
         t0 = time.perf_counter()
         rng = np.random.default_rng([settings.seed, epoch])
         samples = draw_samples(pools, settings, rng)
+        log.info("epoch %d: %d samples drawn in %.0f s", epoch + 1, len(samples["points"]),
+                 time.perf_counter() - t0)  # fmt: skip
         order = rng.permutation(len(samples["points"]))
         model.train()
         losses = []
