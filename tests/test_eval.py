@@ -34,7 +34,7 @@ from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.planning.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
-from nbv.policies.registry import PLANNERS, SHIPPED_SCORER, MethodContext
+from nbv.policies.registry import NETWORK_INPUTS, PLANNERS, SHIPPED_SCORER, MethodContext
 
 ROOT = Path(__file__).resolve().parents[1]
 STARTS = (1, 24)
@@ -48,6 +48,7 @@ def tiny(tmp_path_factory) -> dict[str, Path]:
         "pcnbv": save_tiny_checkpoint(tmp / "pcnbv.pt", "points"),
         "pcnbv_sph": save_tiny_checkpoint(tmp / "pcnbv_sph.pt", "signature"),
         "vcnbv": save_tiny_checkpoint(tmp / "vcnbv.pt", "directions"),
+        "vcnbv_map": save_tiny_checkpoint(tmp / "vcnbv_map.pt", "directions_map"),
     }
 
 
@@ -57,7 +58,7 @@ def tiny_settings(tiny: dict[str, Path], out: Path, **kw) -> EvalSettings:
         data_dir=tiny["data"],
         start_views=STARTS,
         disturb_start_views=(24,),
-        checkpoints={name: str(tiny[name]) for name in ("pcnbv", "pcnbv_sph", "vcnbv")},
+        checkpoints={name: str(tiny[name]) for name in NETWORK_INPUTS},
         hull=PlannerSettings(n_samp=2048),
         progress=False,
     )
@@ -83,11 +84,11 @@ def test_full_run_writes_every_output(full_run):
     data = json.loads((full_run / "results.json").read_text())
     episodes = data["episodes"]
     plain = [e for e in episodes if e["check"] is None]
-    # 2 models x 2 viewspaces x 13 methods (random with 10 seeds) x 2 starts, then the checks on
+    # 2 models x 2 viewspaces x 14 methods (random with 10 seeds) x 2 starts, then the checks on
     # 1 start of original: 2 networks x 2 checks + the random hull + 3 noise levels x (2
     # networks + 2 one-shot planners + ig + ig_learned) = 23 x 2 models x 1 start.
-    assert len(METHODS_BY_NAME) == 13
-    assert len(plain) == 2 * 2 * (10 + 12) * 2
+    assert len(METHODS_BY_NAME) == 14
+    assert len(plain) == 2 * 2 * (10 + 13) * 2
     assert sorted(e["repeat"] for e in plain if e["method"] == "random")[-1] == 9
     assert len(episodes) - len(plain) == 23 * 2
     assert data["skipped"] == {}
@@ -106,7 +107,7 @@ def test_full_run_writes_every_output(full_run):
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 2 * 13 + 23  # (viewspace, method) pairs, then the checks
+    assert len(rows) == 2 * 14 + 23  # (viewspace, method) pairs, then the checks
     by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
     random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
     assert float(by[("original", "random", "")]["auc"]) == pytest.approx(
