@@ -255,6 +255,12 @@ def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset
     ds = nbv.dataset.open(dataset)
     episode = run_episode(ds.model(ds.keys(split="valid")[0]), "permuted", 3, policy)
     assert len(set(episode.views)) == 10
+    # The shipped vcnbv_map weights read map features and play with a map.
+    mapped = ConditionedPolicy.from_checkpoint(shipped_weights("vcnbv_map"))
+    assert mapped.reads_map and not policy.reads_map
+    mapped = mapped.fresh(InformationGainPolicy(VolumetricSettings(), ds.intrinsics))
+    episode = run_episode(ds.model(ds.keys(split="valid")[0]), "permuted", 3, mapped)
+    assert len(set(episode.views)) == 10
     missing = str(tmp_path / "no.pt")
     checkpoints = {"vcnbv": missing, "vcnbv_map": missing, "pcnbv": missing, "pcnbv_sph": missing}
     settings = EvalSettings(out_dir=tmp_path / "e", checkpoints=checkpoints)
