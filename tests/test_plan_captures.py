@@ -13,6 +13,7 @@ import open3d as o3d
 import pytest
 
 import nbv.dataset
+from nbv.assets.weights import shipped_weights
 from nbv.dataset.config import Settings
 from nbv.dataset.generate import generate
 from nbv.geometry.camera import Intrinsics, opencv_to_blender, project
@@ -23,8 +24,9 @@ from nbv.plan.next_view import plan_captures
 from nbv.plan.policy import policy_rng
 from nbv.planning.information_gain import view_gains
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
+from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.episode import EpisodeState, run_episode
-from nbv.policies.registry import METHODS, MethodContext
+from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
 
 CAMERA = Intrinsics.centred(64, 48, 48.0)
 EPS = 0.00707
@@ -49,8 +51,12 @@ def model(tmp_path_factory):
 
 
 def episode_views(model, method: str) -> list[int]:
-    """The evaluator's episode: the registry's policy, the plan's generator."""
-    ctx = MethodContext({}, PlannerSettings(), CAMERA, EPS, 10, VolumetricSettings())
+    """The evaluator's episode: the registry's policy (a viewspace-conditioned network on the
+    shipped weights, as the plan's default), the plan's generator."""
+    networks = {}
+    if NETWORK_INPUTS.get(method) == "directions":
+        networks[method] = ConditionedPolicy.from_checkpoint(shipped_weights(method))
+    ctx = MethodContext(networks, PlannerSettings(), CAMERA, EPS, 10, VolumetricSettings())
     policy = METHODS[method].build(ctx, policy_rng(0, method))
     return run_episode(model, "original", START, policy, 10).views
 
@@ -132,7 +138,7 @@ def test_next_view_from_captures_is_the_episode_of_the_dataset(model, tmp_path, 
 
 
 @pytest.mark.parametrize("kind", ["ply", "npy"])
-@pytest.mark.parametrize("method", ["hull_sco", "ig", "spread"])
+@pytest.mark.parametrize("method", ["hull_sco", "ig", "spread", "vcnbv_map"])
 def test_a_translated_and_scaled_copy_of_the_captures_gives_the_same_plan(
     model, tmp_path, method, kind
 ):
