@@ -52,9 +52,9 @@ from nbv.models.conditioned import (
     save_conditioned,
 )
 from nbv.planning.information_gain import candidate_voxels
-from nbv.planning.occupancy import OccupancyMap
+from nbv.planning.occupancy import OccupancyMap, OccupancySettings
 from nbv.planning.settings import VolumetricSettings
-from nbv.planning.view_features import FEATURES, view_features
+from nbv.planning.view_features import FEATURES, unvisited_features
 from nbv.policies.conditioned import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
@@ -120,6 +120,7 @@ class _Pool:
     points: list[np.ndarray]  # P arrays (n_v, 3)
     n_gt: int
     positions: np.ndarray  # (P, 3) camera centres
+    grid: OccupancySettings | None = None  # the map's, with map features
     seen: list[tuple[np.ndarray, np.ndarray]] | None = None
     rays: np.ndarray | None = None  # (P, R, S)
 
@@ -131,38 +132,23 @@ def _pool(
     views = [model.views[name] for name in VIEWSPACES]
     poses = np.concatenate([v.poses for v in views])
     points = [v.view_points(i) for v in views for i in range(len(v.poses))]
-    seen, rays = None, None
+    grid, seen, rays = None, None, None
     if volumetric is not None:
-        grid = OccupancyMap(volumetric.occupancy())
-        seen = [grid.captured_voxels(p, pose, intrinsics, volumetric.block)
+        grid = volumetric.occupancy()
+        tracer = OccupancyMap(grid)
+        seen = [tracer.captured_voxels(p, pose, intrinsics, volumetric.block)
                 for p, pose in zip(points, poses, strict=True)]  # fmt: skip
-        rays = candidate_voxels(poses, intrinsics, volumetric.columns, volumetric.occupancy())
+        rays = candidate_voxels(poses, intrinsics, volumetric.columns, grid)
     return _Pool(
         directions=unit_directions(poses[:, :3, 3]),
         bits=np.concatenate([v.coverage for v in views]),
         points=points,
         n_gt=len(model.gt_points),
         positions=poses[:, :3, 3],
+        grid=grid,
         seen=seen,
         rays=rays,
     )
-
-
-def _map_features(
-    pool: _Pool, pick: np.ndarray, order: list[int], occupancy: OccupancyMap
-) -> np.ndarray:
-    """(C, len(FEATURES)) float32 map features of a trajectory's candidates ``pick`` (rows of
-    the pool) once the views ``order`` (indices into ``pick``) are captured: ``occupancy`` (the
-    trajectory's map, given all but the last of ``order`` before) takes the last one; zeros for
-    the visited candidates."""
-    occupancy.apply_view(pool.seen[pick[order[-1]]])
-    state = np.zeros(len(pick), bool)
-    state[order] = True
-    open_ = np.flatnonzero(~state)
-    out = np.zeros((len(pick), len(FEATURES)), np.float32)
-    out[open_] = view_features(occupancy, pool.rays[pick[open_]], pool.positions[pick], order,
-                               open_)  # fmt: skip
-    return out
 
 
 def _turn(rng: np.random.Generator) -> np.ndarray:
@@ -180,7 +166,6 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
     float32."""
     keys = ["points", "directions", "view_state", "target", "pick", "model"]
     out: dict[str, list] = {k: [] for k in keys + ["features"] * settings.map_features}
-    grid = VolumetricSettings().occupancy()
     for row, pool in enumerate(pools):
         for _ in range(settings.trajectories):
             pick = rng.choice(len(pool.directions), settings.candidates, replace=False)
@@ -193,7 +178,8 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
             order = [int(rng.choice(seen))]
             state = np.zeros(settings.candidates, bool)
             state[order] = True
-            occupancy = OccupancyMap(grid) if settings.map_features else None
+            if settings.map_features:  # the trajectory's map; its candidates' rays
+                occupancy, rays = OccupancyMap(pool.grid), pool.rays[pick]
             for _ in range(min(settings.steps, settings.candidates - 1)):
                 gains = coverage_gains(bits, state, pool.n_gt).astype(np.float32)
                 cloud = np.concatenate([pool.points[p] for p in pick[state]])
@@ -206,8 +192,10 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
                 out["target"].append(gains)
                 out["pick"].append(pick)
                 out["model"].append(row)
-                if occupancy is not None:
-                    out["features"].append(_map_features(pool, pick, order, occupancy))
+                if settings.map_features:
+                    occupancy.apply_view(pool.seen[pick[order[-1]]])
+                    features = unvisited_features(occupancy, rays, pool.positions[pick], order)
+                    out["features"].append(features.astype(np.float32))
                 if rng.random() < settings.random_step_prob:
                     nxt = int(rng.choice(np.flatnonzero(~state)))
                 else:
@@ -258,7 +246,11 @@ def _predict(model, samples: dict, batch_size: int) -> np.ndarray:
     return np.concatenate(preds)
 
 
-def _validation_auc(model, dataset, keys: list[str], settings: ConditionedSettings) -> dict:
+def _validation_auc(
+    model, dataset, keys: list[str], settings: ConditionedSettings, volumetric: VolumetricSettings
+) -> dict:
+    """Mean validation AUC per viewspace; a network of map features plays on ``volumetric``'s
+    map."""
     policy = ConditionedPolicy(model, settings.eval_points)
     traced: dict = {}
     result = {}
@@ -266,8 +258,7 @@ def _validation_auc(model, dataset, keys: list[str], settings: ConditionedSettin
         curves = [
             run_episode(
                 dataset.model(key, (name,)), name, int(start),
-                policy.fresh(InformationGainPolicy(VolumetricSettings(), dataset.intrinsics,
-                                                   traced=traced)),
+                policy.fresh(InformationGainPolicy(volumetric, dataset.intrinsics, traced=traced)),
             ).coverage
             for key in keys
             for start in settings.start_views
@@ -293,11 +284,12 @@ def run(settings: ConditionedSettings) -> dict:
     categories_of = [dataset.index[k][1] for k in train_keys]
     train_keys = subset(train_keys, categories_of, settings.max_models, settings.seed)
     log.info("%d training, %d validation models", len(train_keys), len(valid_keys))
-    volumetric = VolumetricSettings() if settings.map_features else None
+    volumetric = VolumetricSettings()  # ig's defaults: the map of the map features
+    pooled = volumetric if settings.map_features else None
     t0 = time.perf_counter()
-    pools = [_pool(dataset.model(k, VIEWSPACES), dataset.intrinsics, volumetric)
+    pools = [_pool(dataset.model(k, VIEWSPACES), dataset.intrinsics, pooled)
              for k in train_keys]  # fmt: skip
-    val_pools = [_pool(dataset.model(k, VIEWSPACES), dataset.intrinsics, volumetric)
+    val_pools = [_pool(dataset.model(k, VIEWSPACES), dataset.intrinsics, pooled)
                  for k in valid_keys]  # fmt: skip
     log.info("views of %d models read in %.0f s", len(pools) + len(val_pools),
              time.perf_counter() - t0)  # fmt: skip
@@ -352,7 +344,7 @@ def run(settings: ConditionedSettings) -> dict:
             "train_loss": float(np.mean(losses)),
             "train_spearman": spearman(train_pred, probe["target"], probe["view_state"]),
             "val_spearman": spearman(val_pred, val_samples["target"], val_samples["view_state"]),
-            **_validation_auc(model, dataset, valid_keys, settings),
+            **_validation_auc(model, dataset, valid_keys, settings, volumetric),
             "seconds": time.perf_counter() - t0,
         }
         by_model = spearman_by_model(val_pred, val_samples["target"], val_samples["view_state"],

@@ -117,3 +117,23 @@ def view_features(
     return np.hstack(
         [relative, angles.min(axis=1, keepdims=True), angles[:, -1:], angles[:, :1], taken]
     )
+
+
+def unvisited_features(
+    occupancy: OccupancyMap, voxels: np.ndarray, positions: np.ndarray, order: list[int]
+) -> np.ndarray:
+    """:func:`view_features` of every view of a viewspace that ``order`` has not captured.
+
+    Args:
+        occupancy: the map of the captured views.
+        voxels: (V, R, S) rays' voxels of every view of the viewspace.
+        positions: (V, 3) their camera centres, world units.
+        order: the captured views in order (indices into ``positions``), at least one.
+
+    Returns:
+        (V, len(FEATURES)) float64; the rows of the captured views are zeros.
+    """
+    open_ = np.setdiff1d(np.arange(len(positions)), order)
+    out = np.zeros((len(positions), len(FEATURES)))
+    out[open_] = view_features(occupancy, voxels[open_], positions, order, open_)
+    return out

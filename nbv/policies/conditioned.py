@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from nbv.geometry.clouds import farthest_points
-from nbv.planning.view_features import FEATURES, view_features
+from nbv.planning.view_features import unvisited_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import cloud_or_origin, record_time
 from nbv.policies.volumetric import InformationGainPolicy
@@ -73,8 +73,8 @@ class ConditionedPolicy:
         )
 
     def map_features(self, state: EpisodeState) -> np.ndarray:
-        """(V, len(FEATURES)) float32 map features of the episode's views (:func:`view_features`
-        of the unvisited ones on the mapper's map; zeros for the visited ones)."""
+        """(V, F) float32 map features of the episode's views on the mapper's map
+        (:func:`~nbv.planning.view_features.unvisited_features`: zeros for the visited ones)."""
         if self.mapper is None:
             raise ValueError(
                 "this network reads map features: build its policy with fresh(mapper=...), an "
@@ -82,12 +82,9 @@ class ConditionedPolicy:
             )
         self.mapper.update(state)
         poses = state.model.views[state.viewspace].poses
-        open_ = np.flatnonzero(~state.view_state)
-        out = np.zeros((len(poses), len(FEATURES)), np.float32)
-        voxels = self.mapper.candidate_voxels(poses)[open_]
-        out[open_] = view_features(self.mapper.occupancy, voxels, poses[:, :3, 3], state.order,
-                                   open_)  # fmt: skip
-        return out
+        voxels = self.mapper.candidate_voxels(poses)
+        features = unvisited_features(self.mapper.occupancy, voxels, poses[:, :3, 3], state.order)
+        return features.astype(np.float32)
 
     def scores(
         self,

@@ -20,7 +20,7 @@ from nbv.geometry.camera import Intrinsics
 from nbv.planning.information_gain import view_gains
 from nbv.planning.scorer import GainScorer, load_scorer
 from nbv.planning.settings import VolumetricSettings
-from nbv.planning.view_features import view_features
+from nbv.planning.view_features import unvisited_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.policies.volumetric import InformationGainPolicy
@@ -52,10 +52,8 @@ class LearnedGainPolicy(InformationGainPolicy):
         view = state.model.views[state.viewspace]
         candidates = self.candidate_voxels(view.poses)
         open_ = np.flatnonzero(~state.view_state)
-        features = view_features(
-            self.occupancy, candidates[open_], view.poses[:, :3, 3], state.order, open_
-        )
-        best = int(np.argmax(self.scorer.scores(features)))
+        features = unvisited_features(self.occupancy, candidates, view.poses[:, :3, 3], state.order)
+        best = int(np.argmax(self.scorer.scores(features[open_])))
         choice = int(open_[best])
         gain = view_gains(self.occupancy, candidates[choice : choice + 1], self.settings.metric)
         self.last_gains = [float(gain[0])]

@@ -160,7 +160,8 @@ PCNBV_SPH = Method(
 
 def _conditioned(name: str) -> Callable[[MethodContext, np.random.Generator], Policy]:
     """A fresh policy of the viewspace-conditioned checkpoint of method ``name``, with a fresh
-    occupancy map of the run's ``ig`` settings (read only by a network of map features)."""
+    occupancy map of the run's ``ig`` settings (read only by a network of map features; an
+    unused one costs nothing: its map is made on its first update)."""
     return lambda ctx, rng: ctx.networks[name].fresh(
         InformationGainPolicy(ctx.volumetric, ctx.intrinsics, traced=ctx.traced)
     )
