@@ -199,6 +199,16 @@ def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
         assert len(set(episode.views)) == 10
     # Resuming a finished run trains nothing more and gives the same result.
     assert run(settings)["last"] == result["last"]
+    # More epochs extend it: the same weights as a run started with them.
+    extended = run(replace(settings, epochs=3))
+    fresh = run(replace(settings, epochs=3, out_dir=tmp_path / "three"))
+    assert extended["last"] == {**fresh["last"], "seconds": extended["last"]["seconds"]}
+    weights = [load_conditioned(tmp_path / d / "last.pt")[0].state_dict() for d in ("run", "three")]
+    assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])
+    with pytest.raises(ValueError, match="trained with other settings"):
+        run(replace(settings, epochs=2))  # fewer epochs than it holds
+    with pytest.raises(ValueError, match="trained with other settings"):
+        run(replace(settings, epochs=4, lr=1e-4))
 
 
 def test_a_real_training_run_with_map_features(dataset, tmp_path):

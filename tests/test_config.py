@@ -30,6 +30,7 @@ import train.scorer
 from nbv.assets.weights import shipped_weights
 from nbv.config.schema import ConfigError, describe
 from nbv.dataset.samples import SampleSettings
+from nbv.models.conditioned import ConditionedConfig
 from nbv.models.config import PCNBVConfig
 from nbv.planning.settings import PlannerSettings
 
@@ -136,6 +137,15 @@ def test_the_schemas_hold_the_fields_of_the_settings_they_feed():
     )
     samples = set(nbv.dataset.config.SamplesConfig.__dataclass_fields__) - {"enabled"}
     assert samples == set(SampleSettings.__dataclass_fields__) - {"seed"}
+    widths = set(train.conditioned.NetFields.__dataclass_fields__)
+    assert widths == set(ConditionedConfig.__dataclass_fields__) - {"map_features"}
+
+
+def test_the_conditioned_networks_widths_are_settings():
+    assert build("train_conditioned", composed("train_conditioned"))[0].net == ConditionedConfig()
+    wide = ["net.point_channels=[128,256]", "net.head_channels=[256,128]"]
+    net = build("train_conditioned", composed("train_conditioned", wide))[0].net
+    assert net == ConditionedConfig(point_channels=(128, 256), head_channels=(256, 128))
 
 
 def test_shared_groups_write_a_value_once():
@@ -186,6 +196,8 @@ def test_shared_groups_write_a_value_once():
         ("eval", "hull.dilate=maybe", "hull.dilate='maybe': must be true or false"),
         ("eval", "start_views=abc", "start_views='abc': must be a list"),
         ("bench", "network=sometimes", "network='sometimes': must be true or false"),
+        ("train_conditioned", "net.view_channels=wide", "net.view_channels='wide': must be a "
+                                                        "list"),
     ],
 )  # fmt: skip
 def test_hydra_refuses_unknown_keys_and_wrong_types_naming_the_key(name, override, message):
@@ -211,6 +223,8 @@ def test_hydra_refuses_unknown_keys_and_wrong_types_naming_the_key(name, overrid
         ("eval", "hull.simulation=guess", "hull.simulation='guess': must be one of analytic"),
         ("eval", "+hull.radius=2", "hull.radius: unknown key; allowed: n_samp, simulation"),
         ("bench", "checkpoint=/nowhere/best.pt", "checkpoint='/nowhere/best.pt': no such file"),
+        ("train_conditioned", "net.head_channels=[0]", "net.head_channels=[0]: must be a non-"),
+        ("train_conditioned", "epochs=0", "epochs=0: must be an integer >= 1"),
     ],
 )
 def test_settings_refuse_what_composes_but_cannot_be_used(name, override, message):

@@ -41,7 +41,14 @@ from omegaconf import MISSING, DictConfig
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES
 from nbv.config.cli import entry_point, refuse
-from nbv.config.schema import PathsConfig, ProtocolConfig, register, schema_of, validated
+from nbv.config.schema import (
+    ConfigError,
+    PathsConfig,
+    ProtocolConfig,
+    register,
+    schema_of,
+    validated,
+)
 from nbv.dataset.records import ModelData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import coverage_gains
@@ -269,7 +276,9 @@ def _validation_auc(
 
 def run(settings: ConditionedSettings) -> dict:
     """Train; returns the last epoch's metrics and the chosen epoch. Resumes from ``last.pt``
-    when it holds the same settings."""
+    when it holds the same settings but, perhaps, fewer ``epochs``: an epoch's samples come from
+    ``(seed, epoch)`` and the learning rate is constant, so a run extended to more epochs equals
+    one started with them."""
     if settings.threads:
         torch.set_num_threads(settings.threads)
     dataset = nbv.dataset.open(settings.dataset)
@@ -310,7 +319,7 @@ def run(settings: ConditionedSettings) -> dict:
     last = out / "last.pt"
     if last.exists():
         saved, extra = load_conditioned(last)
-        if extra.get("settings") == plain:
+        if _same_run(extra.get("settings"), plain):
             model.load_state_dict(saved.state_dict())
             opt = extra["optimizer"]
             opt["state"] = {int(k): v for k, v in opt["state"].items()}
@@ -366,6 +375,19 @@ def run(settings: ConditionedSettings) -> dict:
     return {"last": rows[-1], "best_val_auc": best}
 
 
+def _same_run(saved: dict | None, wanted: dict) -> bool:
+    """Whether a checkpoint's settings continue into ``wanted``: equal but for ``epochs``, which
+    may grow."""
+    if saved is None:
+        return False
+    rest = {k: v for k, v in saved.items() if k != "epochs"}
+    wanted_rest = {k: v for k, v in wanted.items() if k != "epochs"}
+    return rest == wanted_rest and saved.get("epochs", 0) <= wanted["epochs"]
+
+
+NetFields = schema_of(ConditionedConfig, "NetFields", optional=True, exclude=("map_features",))
+
+
 @dataclass
 class ConditionedTrainConfig(
     schema_of(
@@ -375,11 +397,12 @@ class ConditionedTrainConfig(
     )
 ):
     """The schema of ``conf/train_conditioned.yaml``: the fields of :class:`ConditionedSettings`
-    (but the training categories and the network's sizes, which keep their defaults), paths as
-    strings, and the shared groups."""
+    (but the training categories, which keep their defaults), paths as strings, the network's
+    widths (each null: :class:`ConditionedConfig`'s default) and the shared groups."""
 
     dataset: str = MISSING
     out_dir: str = MISSING
+    net: NetFields = field(default_factory=NetFields)  # type: ignore[valid-type]
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
     paths: PathsConfig = field(default_factory=PathsConfig)
 
@@ -393,7 +416,12 @@ def settings_from_config(cfg) -> ConditionedSettings:
     del c["protocol"], c["paths"]
     c["dataset"], c["out_dir"] = Path(c["dataset"]), Path(c["out_dir"])
     c["start_views"] = tuple(c["start_views"])
-    return ConditionedSettings(**c)
+    widths = {k: tuple(v) if isinstance(v, list) else v for k, v in c["net"].items()}
+    try:
+        c["net"] = ConditionedConfig(**{k: v for k, v in widths.items() if v is not None})
+        return ConditionedSettings(**c)
+    except ValueError as err:
+        raise ConfigError(str(err)) from None
 
 
 @hydra.main(config_path="../conf", config_name="train_conditioned", version_base="1.3")

@@ -48,6 +48,18 @@ class ConditionedConfig:
     #: Map features per candidate the head also reads (0: the cloud and directions only).
     map_features: int = 0
 
+    def __post_init__(self) -> None:
+        for key in ("point_channels", "view_channels", "head_channels"):
+            widths = getattr(self, key)
+            if not widths or any(int(w) != w or w < 1 for w in widths):
+                raise ValueError(f"net.{key}={list(widths)}: must be a non-empty list of "
+                                 f"integers >= 1")  # fmt: skip
+        if self.visited_channels < 1 or self.map_features < 0:
+            raise ValueError(
+                f"net.visited_channels={self.visited_channels}, map_features="
+                f"{self.map_features}: must be >= 1 and >= 0"
+            )
+
     def to_dict(self) -> dict[str, Any]:
         """Plain values for a checkpoint."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
