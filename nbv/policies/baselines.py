@@ -23,6 +23,10 @@ class RandomPolicy:
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
+    def view_scores(self, state: EpisodeState) -> np.ndarray:
+        """(V,) uniform random scores from the generator: the ranking of no information."""
+        return self.rng.random(len(state.view_state))
+
     def __call__(self, state: EpisodeState) -> int:
         return int(self.rng.choice(np.flatnonzero(~state.view_state)))
 
@@ -39,10 +43,19 @@ class SpreadPolicy:
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
 
-    def __call__(self, state: EpisodeState) -> int:
+    @staticmethod
+    def _directions(state: EpisodeState) -> np.ndarray:
         positions = state.model.views[state.viewspace].poses[:, :3, 3]
-        directions = positions / np.linalg.norm(positions, axis=1, keepdims=True)
-        return spread_views(directions, state.view_state, 1)[0]
+        return positions / np.linalg.norm(positions, axis=1, keepdims=True)
+
+    def view_scores(self, state: EpisodeState) -> np.ndarray:
+        """(V,) degrees from each view to its nearest visited view (what the rule maximises)."""
+        d = self._directions(state)
+        cosine = (d @ d[state.view_state].T).max(axis=1)
+        return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+
+    def __call__(self, state: EpisodeState) -> int:
+        return spread_views(self._directions(state), state.view_state, 1)[0]
 
 
 @dataclass

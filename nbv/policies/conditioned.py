@@ -111,12 +111,16 @@ class ConditionedPolicy:
         record_time(self.timings, "network", time.perf_counter() - t1)
         return out
 
-    def __call__(self, state: EpisodeState) -> int:
+    def view_scores(self, state: EpisodeState) -> np.ndarray:
+        """(V,) the scores this policy picks by in ``state`` (:meth:`scores` on the episode's
+        cloud, views and, for a network that reads them, map features)."""
         positions = state.model.views[state.viewspace].poses[:, :3, 3]
         features = None
         if self.reads_map:
             t0 = time.perf_counter()
             features = self.map_features(state)
             record_time(self.timings, "map", time.perf_counter() - t0)
-        scores = self.scores(state.cloud(), positions, state.view_state, features)
-        return int(np.argmax(np.where(state.view_state, -np.inf, scores)))
+        return self.scores(state.cloud(), positions, state.view_state, features)
+
+    def __call__(self, state: EpisodeState) -> int:
+        return int(np.argmax(np.where(state.view_state, -np.inf, self.view_scores(state))))

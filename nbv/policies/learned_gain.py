@@ -24,6 +24,7 @@ from nbv.planning.view_features import unvisited_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.utils.selection import masked_argmax
 
 
 @dataclass
@@ -43,7 +44,8 @@ class LearnedGainPolicy(InformationGainPolicy):
         defaults, on which the shipped scorer was trained)."""
         return cls(settings or VolumetricSettings(), intrinsics, scorer=load_scorer(path))
 
-    def __call__(self, state: EpisodeState) -> int:
+    def view_scores(self, state: EpisodeState) -> np.ndarray:
+        """(V,) the learned scores this policy picks by in ``state`` (-inf for visited views)."""
         if self.scorer is None:
             raise ValueError("LearnedGainPolicy needs a scorer (nbv.planning.scorer.load_scorer)")
         t0 = time.perf_counter()
@@ -53,12 +55,17 @@ class LearnedGainPolicy(InformationGainPolicy):
         candidates = self.candidate_voxels(view.poses)
         open_ = np.flatnonzero(~state.view_state)
         features = unvisited_features(self.occupancy, candidates, view.poses[:, :3, 3], state.order)
-        best = int(np.argmax(self.scorer.scores(features[open_])))
-        choice = int(open_[best])
-        gain = view_gains(self.occupancy, candidates[choice : choice + 1], self.settings.metric)
-        self.last_gains = [float(gain[0])]
+        scores = np.full(len(candidates), -np.inf)
+        scores[open_] = self.scorer.scores(features[open_])
         record_time(self.timings, "map", t1 - t0)
         record_time(self.timings, "gains", time.perf_counter() - t1)
+        return scores
+
+    def __call__(self, state: EpisodeState) -> int:
+        choice = masked_argmax(self.view_scores(state), state.view_state)
+        candidates = self.candidate_voxels(state.model.views[state.viewspace].poses)
+        gain = view_gains(self.occupancy, candidates[choice : choice + 1], self.settings.metric)
+        self.last_gains = [float(gain[0])]
         self.counts["planned"] += 1
         self.counts["zero_gain"] += int(gain[0] <= 0)
         return choice

@@ -87,6 +87,26 @@ class NetworkPolicy:
             return safe_signature(cloud, self.lmax, self.notes)
         return farthest_points(cloud, self.n_points)
 
+    def predict(self, cloud: np.ndarray, view_state: np.ndarray) -> np.ndarray:
+        """(V,) float32 predicted gain of every view (visited ones included) for ``cloud``
+        ((N, 3) float accumulated cloud, world units) and ``view_state`` ((V,) bool, the state
+        the network is shown)."""
+        import torch
+
+        from nbv.models.precision import autocast, flush_denormals
+
+        t0 = time.perf_counter()
+        points = self.features(cloud)
+        t1 = time.perf_counter()
+        device = next(self.model.parameters()).device
+        with torch.inference_mode(), flush_denormals(), autocast(self.precision, device):
+            x = torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32))[None]
+            s = torch.from_numpy(np.asarray(view_state, dtype=np.float32))[None]
+            scores = self.model(x.to(device), s.to(device)).float().cpu()[0].numpy()
+        record_time(self.timings, "signature" if self.input == "signature" else "sampling", t1 - t0)
+        record_time(self.timings, "network", time.perf_counter() - t1)
+        return scores
+
     def decide(
         self, cloud: np.ndarray, view_state: np.ndarray, visited: np.ndarray | None = None
     ) -> int:
@@ -99,27 +119,19 @@ class NetworkPolicy:
                 disturbance checks show the network another state than the true one.)
 
         Returns:
-            The index of the highest-scoring view not in ``visited``.
+            The index of the highest-scoring view not in ``visited``, ties to the lowest.
         """
         import torch
 
-        from nbv.models.inference import masked_argmax
-        from nbv.models.precision import autocast, flush_denormals
+        from nbv.models.inference import masked_argmax  # refuses NaN scores and a full state
 
-        t0 = time.perf_counter()
-        points = self.features(cloud)
-        t1 = time.perf_counter()
-        device = next(self.model.parameters()).device
-        with torch.inference_mode(), flush_denormals(), autocast(self.precision, device):
-            x = torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32))[None]
-            s = torch.from_numpy(np.asarray(view_state, dtype=bool))[None]
-            scores = self.model(x.to(device), s.float().to(device)).cpu()
-            mask = s if visited is None else torch.from_numpy(np.asarray(visited, bool))[None]
-            choice = int(masked_argmax(scores, mask)[0])
-        t2 = time.perf_counter()
-        record_time(self.timings, "signature" if self.input == "signature" else "sampling", t1 - t0)
-        record_time(self.timings, "network", t2 - t1)
-        return choice
+        scores = torch.from_numpy(self.predict(cloud, view_state))[None]
+        mask = torch.from_numpy(np.asarray(view_state if visited is None else visited, bool))
+        return int(masked_argmax(scores, mask[None])[0])
+
+    def view_scores(self, state: EpisodeState) -> np.ndarray:
+        """(V,) the scores this policy picks by in ``state`` (see :meth:`predict`)."""
+        return self.predict(state.cloud(), state.view_state)
 
     def __call__(self, state: EpisodeState) -> int:
         return self.decide(state.cloud(), state.view_state)

@@ -86,7 +86,11 @@ class InformationGainPolicy:
             )
         return self.traced[key]
 
-    def __call__(self, state: EpisodeState) -> int:
+    def _gains(self, state: EpisodeState) -> tuple[np.ndarray, np.ndarray]:
+        """``(gains, score)``, each (V,): every unvisited view's information gain (0 for the
+        visited ones) on the map of the captured views, and the score it is picked by (the gain,
+        or with ``spread_weight`` the normalised gain plus the weighted angle to the nearest
+        visited view)."""
         t0 = time.perf_counter()
         self.update(state)
         t1 = time.perf_counter()
@@ -101,10 +105,18 @@ class InformationGainPolicy:
             positions = state.model.views[state.viewspace].poses[:, :3, 3]
             nearest = angular_distances(positions, positions[state.view_state]).min(axis=1)
             score = gains / gains.max() + self.settings.spread_weight * nearest / 180.0
-        choice = masked_argmax(score, state.view_state)
-        self.last_gains = [float(gains[choice])]
         record_time(self.timings, "map", t1 - t0)
         record_time(self.timings, "gains", time.perf_counter() - t1)
+        return gains, score
+
+    def view_scores(self, state: EpisodeState) -> np.ndarray:
+        """(V,) the scores this policy picks by in ``state`` (0 for visited views)."""
+        return self._gains(state)[1]
+
+    def __call__(self, state: EpisodeState) -> int:
+        gains, score = self._gains(state)
+        choice = masked_argmax(score, state.view_state)
+        self.last_gains = [float(gains[choice])]
         self.counts["planned"] += 1
         self.counts["zero_gain"] += int(gains[choice] <= 0)
         return int(choice)

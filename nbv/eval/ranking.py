@@ -1,0 +1,190 @@
+"""``python -m nbv.eval.ranking [--methods ...] [--out outputs/ranking]``: how well each method's
+view scores rank the true coverage gains, on the evaluation's models.
+
+The states are the oracle's episodes (the evaluation's start views, each viewspace) after 1, ...,
+``n_views - 1`` captured views: the same states for every method. Each method scores the states
+of an episode in order with a fresh policy (the registry's, as the evaluator builds it, so an
+incremental map grows as in an episode), through the policy's ``view_scores``: the scores it
+picks its view by. For each state:
+
+* Spearman's rank correlation of the scores against the true coverage gains of the unvisited
+  views (a state whose unvisited views all gain alike has no ranks and is left out);
+* whether the best-scored unvisited view is a best one by the true gain.
+
+Written to ``--out``: ``ranking.md`` (mean Spearman with a 95 % interval resampling the models;
+minus spread, paired on the same states; best-view hits; Spearman per category) and
+``ranking.json`` (every state's values). Methods without per-view scores (the oracle, the
+one-shot hull planners) are refused with the list of those that have them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from nbv.dataset.records import ModelData, score_functions
+from nbv.eval.config import EvalSettings
+from nbv.eval.evaluate import exclude_selection, load_networks, open_datasets, with_shipped_weights
+from nbv.planning.scorer import load_scorer
+from nbv.policies.episode import EpisodeState
+from nbv.policies.registry import METHODS, MethodContext
+from nbv.utils.markdown import md_table
+from nbv.utils.ranking import spearman_per_sample
+from nbv.utils.stats import bootstrap_mean
+
+log = logging.getLogger("nbv.eval.ranking")
+#: The methods whose policies have per-view scores (``view_scores``).
+RANKED = ("random", "spread", "pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map", "ig", "ig_learned")
+DEFAULT_METHODS = ("random", "spread", "ig", "ig_learned", "vcnbv", "vcnbv_map")
+
+
+def oracle_states(model: ModelData, viewspace: str, start: int, n_views: int) -> list[EpisodeState]:
+    """The states of the oracle's episode from ``start``: after 1, ..., ``n_views - 1``
+    captured views (greedy by the true coverage gain, ties to the lowest index)."""
+    gains, _ = score_functions(model, "coverage", viewspace)
+    n = len(model.views[viewspace].poses)
+    order, out = [start], []
+    for _ in range(n_views - 1):
+        state = np.zeros(n, dtype=bool)
+        state[order] = True
+        out.append(EpisodeState(model, viewspace, state, list(order)))
+        order.append(int(np.argmax(np.where(state, -np.inf, gains(state)))))
+    return out
+
+
+def score_states(
+    model: ModelData,
+    viewspace: str,
+    start: int,
+    methods: tuple[str, ...],
+    ctx: MethodContext,
+    seed: int,
+) -> list[dict]:
+    """One record per state of the oracle's episode: the true gains, and each method's Spearman
+    and best-view hit (``{"spearman": {method: value or None}, "hit": {method: bool}, ...}``)."""
+    states = oracle_states(model, viewspace, start, ctx.n_views)
+    gains, _ = score_functions(model, "coverage", viewspace)
+    truth = np.stack([gains(s.view_state) for s in states])
+    visited = np.stack([s.view_state for s in states])
+    records = [{"viewspace": viewspace, "start": start, "captured": len(s.order),
+                "spearman": {}, "hit": {}} for s in states]  # fmt: skip
+    best = np.where(visited, -np.inf, truth).max(axis=1)
+    for name in methods:
+        policy = METHODS[name].build(ctx, np.random.default_rng([seed, start]))
+        scores = np.stack([policy.view_scores(s) for s in states])
+        rho = spearman_per_sample(scores, truth, visited)
+        picked = np.argmax(np.where(visited, -np.inf, scores), axis=1)
+        for i, record in enumerate(records):
+            record["spearman"][name] = None if np.isnan(rho[i]) else float(rho[i])
+            record["hit"][name] = bool(truth[i, picked[i]] >= best[i])
+    return records
+
+
+def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
+    """Every state record of every selected model (``model`` and ``category`` added), in the
+    order of the models, viewspaces and start views."""
+    from tqdm import tqdm
+
+    refused = [m for m in settings.methods if m not in RANKED]
+    if refused:
+        raise ValueError(f"methods {refused} have no per-view scores; allowed: {', '.join(RANKED)}")
+    settings = with_shipped_weights(settings)
+    opened = open_datasets(settings)
+    n_views = len(opened[0][1].viewspaces[settings.viewspaces[0]])
+    networks, skipped = load_networks(settings, n_views)
+    if skipped:
+        raise ValueError("; ".join(f"{m}: {reason}" for m, reason in skipped.items()))
+    scorer = load_scorer(settings.scorer_file()) if "ig_learned" in settings.methods else None
+    records = []
+    for info, ds in opened:
+        exclude_selection(info, ds, networks)
+        ctx = MethodContext(networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]),
+                            settings.n_views, settings.ig, scorer=scorer)  # fmt: skip
+        for key in tqdm(info.keys, desc=f"ranking {info.name}", disable=not settings.progress):
+            model = ds.model(key, settings.viewspaces)
+            for vs in settings.viewspaces:
+                for start in settings.start_views:
+                    for r in score_states(model, vs, start, settings.methods, ctx, seed):
+                        records.append({"model": key, "category": ds.index[key][1], **r})
+    return records
+
+
+def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
+    """Per method: states ranked, mean Spearman (95 % interval resampling the models), minus
+    spread on the states both rank (paired, when spread is among ``methods``), best-view hits,
+    and the mean Spearman per category."""
+    models = np.array([r["model"] for r in records])
+    rows = []
+    for name in methods:
+        rho = np.array([np.nan if r["spearman"][name] is None else r["spearman"][name]
+                        for r in records])  # fmt: skip
+        ok = np.isfinite(rho)
+        row = {"method": name, "states": int(ok.sum()),
+               "spearman": bootstrap_mean(rho[ok], models[ok]),
+               "hits": float(np.mean([r["hit"][name] for r in records]))}  # fmt: skip
+        if "spread" in methods and name != "spread":
+            base = np.array([np.nan if r["spearman"]["spread"] is None else r["spearman"]["spread"]
+                             for r in records])  # fmt: skip
+            both = ok & np.isfinite(base)
+            row["minus_spread"] = bootstrap_mean(rho[both] - base[both], models[both])
+        cats = sorted({r["category"] for r in records})
+        row["by_category"] = {c: float(np.nanmean(rho[[r["category"] == c for r in records]]))
+                              for c in cats}  # fmt: skip
+        rows.append(row)
+    return rows
+
+
+def write(out: Path, records: list[dict], rows: list[dict]) -> None:
+    """``ranking.json`` (every state) and ``ranking.md`` (the summary tables)."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "ranking.json").write_text(json.dumps({"states": records}))
+    cats = list(rows[0]["by_category"])
+    lines = md_table(
+        ["method", "states", "Spearman [95 %]", "minus spread [95 %]", "best-view hits"],
+        [[r["method"], str(r["states"]), r["spearman"].text(),
+          r["minus_spread"].text() if "minus_spread" in r else "", f"{r['hits']:.3f}"]
+         for r in rows],
+    )  # fmt: skip
+    lines += ["", *md_table(["method", *cats],
+                            [[r["method"], *(f"{r['by_category'][c]:.2f}" for c in cats)]
+                             for r in rows])]  # fmt: skip
+    (out / "ranking.md").write_text("\n".join([*lines, ""]))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(prog="nbv.eval.ranking", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--methods", nargs="+", default=list(DEFAULT_METHODS),
+                        help=f"any of {', '.join(RANKED)}")  # fmt: skip
+    parser.add_argument("--out", type=Path, default=Path("outputs/ranking"))
+    parser.add_argument("--data-dir", type=Path, default=Path("data/generated/synthetic"))
+    parser.add_argument("--dataset", default="unseen", help="unseen, train or meshes")
+    parser.add_argument("--mesh-dir", type=Path, default=None)
+    parser.add_argument("--limit", type=int, default=None, help="at most this many models")
+    parser.add_argument("--checkpoint", action="append", default=[], metavar="METHOD=PATH",
+                        help="a network method's checkpoint (default: nbv.eval's)")  # fmt: skip
+    args = parser.parse_args()
+    logging.basicConfig(level=logging.INFO)
+    try:
+        settings = EvalSettings(out_dir=args.out, methods=tuple(args.methods),
+                                datasets=(args.dataset,), data_dir=args.data_dir,
+                                mesh_dir=args.mesh_dir, limit=args.limit, checks=())  # fmt: skip
+        given = dict(c.split("=", 1) for c in args.checkpoint if "=" in c)
+        if len(given) != len(args.checkpoint):
+            raise ValueError(f"--checkpoint {args.checkpoint}: each must be METHOD=PATH")
+        settings = dataclasses.replace(settings, checkpoints={**settings.checkpoints, **given})
+        records = ranking(settings)
+    except ValueError as err:
+        parser.exit(2, f"nbv.eval.ranking: {err}\n")
+    rows = summary(records, settings.methods)
+    write(args.out, records, rows)
+    for r in rows:
+        log.info("%s: Spearman %s over %d states", r["method"], r["spearman"].text(), r["states"])
+
+
+if __name__ == "__main__":
+    main()

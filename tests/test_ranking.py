@@ -1,0 +1,149 @@
+"""Ranking quality (``nbv.eval.ranking``): the states are the oracle's, every method's scores are
+the ones it picks by, Spearman agrees with a brute-force rank correlation, the summary's exact
+values on hand-made records, and the real command on a small dataset."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_policies import make_tiny_dataset, save_tiny_checkpoint
+
+import nbv.dataset
+from nbv.eval.config import EvalSettings
+from nbv.eval.ranking import RANKED, oracle_states, ranking, summary
+from nbv.policies.baselines import OraclePolicy
+from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
+from nbv.utils.ranking import spearman, spearman_per_sample
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory) -> dict[str, Path]:
+    tmp = tmp_path_factory.mktemp("ranking")
+    return {
+        "data": make_tiny_dataset(tmp / "data", models=2),
+        "pcnbv": save_tiny_checkpoint(tmp / "pcnbv.pt", "points"),
+        "pcnbv_sph": save_tiny_checkpoint(tmp / "pcnbv_sph.pt", "signature"),
+        "vcnbv": save_tiny_checkpoint(tmp / "vcnbv.pt", "directions"),
+        "vcnbv_map": save_tiny_checkpoint(tmp / "vcnbv_map.pt", "directions_map"),
+    }
+
+
+def _brute_spearman(p: np.ndarray, t: np.ndarray) -> float:
+    """Pearson correlation of average ranks, ranks counted by hand."""
+
+    def ranks(x):
+        return np.array([np.sum(x < v) + (np.sum(x == v) + 1) / 2 for v in x])
+
+    a, b = ranks(p) - ranks(p).mean(), ranks(t) - ranks(t).mean()
+    return float((a * b).sum() / np.sqrt((a * a).sum() * (b * b).sum()))
+
+
+def test_spearman_agrees_with_brute_force_ranks_and_skips_what_has_none():
+    rng = np.random.default_rng(3)
+    pred = rng.integers(0, 5, size=(40, 9)).astype(float)  # ties on purpose
+    target = rng.integers(0, 4, size=(40, 9)).astype(float)
+    state = rng.random((40, 9)) < 0.3
+    target[0] = 2.0  # constant target: no ranks
+    state[1] = True
+    state[1, 4] = False  # one unvisited view: no ranks
+    got = spearman_per_sample(pred, target, state)
+    assert np.isnan(got[0]) and np.isnan(got[1])
+    for i in range(2, 40):
+        free = ~state[i]
+        if np.ptp(pred[i][free]) and np.ptp(target[i][free]):
+            assert got[i] == pytest.approx(_brute_spearman(pred[i][free], target[i][free]))
+    assert spearman(pred, target, state) == pytest.approx(np.nanmean(got))
+    assert spearman(target, target, state) == pytest.approx(1.0)
+
+
+def test_the_states_are_the_oracles_episode(tiny):
+    ds = nbv.dataset.open(tiny["data"])
+    model = ds.model(ds.keys()[0])
+    states = oracle_states(model, "permuted", 24, 10)
+    assert [len(s.order) for s in states] == list(range(1, 10)) and states[0].order == [24]
+    oracle = OraclePolicy("coverage")
+    for before, after in zip(states[:-1], states[1:], strict=True):
+        assert after.order == [*before.order, oracle(before)]
+        assert np.array_equal(np.flatnonzero(after.view_state), sorted(after.order))
+
+
+@pytest.mark.parametrize("name", RANKED)
+def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
+    ds = nbv.dataset.open(tiny["data"])
+    model = ds.model(ds.keys()[1])
+    settings = EvalSettings(out_dir=Path("unused"), progress=False,
+                            checkpoints={n: str(tiny[n]) for n in NETWORK_INPUTS})  # fmt: skip
+    from nbv.eval.evaluate import load_networks
+
+    networks, skipped = load_networks(settings, 33)
+    assert not skipped
+    ctx = MethodContext(networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]), 10)
+    scoring = METHODS[name].build(ctx, np.random.default_rng(5))
+    picking = METHODS[name].build(ctx, np.random.default_rng(5))
+    for state in oracle_states(model, "original", 1, 10):
+        scores = scoring.view_scores(state)
+        assert scores.shape == (33,)
+        if name == "random":  # its scores rank at random; its picks are a random choice
+            continue
+        best = np.where(state.view_state, -np.inf, scores)
+        assert best[picking(state)] == best.max()
+
+
+def test_summary_exact_on_hand_made_records():
+    def record(model, cat, a, s, hit):
+        return {"model": model, "category": cat, "spearman": {"a": a, "spread": s},
+                "hit": {"a": hit, "spread": False}}  # fmt: skip
+
+    records = [record("m1", "x", 0.5, 0.25, True), record("m1", "x", None, 0.5, False),
+               record("m2", "y", 1.0, 0.0, True), record("m2", "y", 0.0, None, False)]  # fmt: skip
+    rows = {r["method"]: r for r in summary(records, ("spread", "a"))}
+    assert rows["a"]["states"] == 3 and rows["spread"]["states"] == 3
+    assert rows["a"]["spearman"].mean == pytest.approx(0.5)
+    assert rows["a"]["minus_spread"].mean == pytest.approx(((0.5 - 0.25) + (1.0 - 0.0)) / 2)
+    assert rows["a"]["hits"] == 0.5 and rows["spread"]["hits"] == 0.0
+    assert rows["a"]["by_category"] == {"x": 0.5, "y": 0.5}
+    assert "minus_spread" not in rows["spread"]
+
+
+def test_ranking_is_deterministic_and_leaves_out_states_without_ranks(tiny):
+    settings = EvalSettings(out_dir=Path("unused"), data_dir=tiny["data"], start_views=(1,),
+                            methods=("random", "spread", "ig"), progress=False)  # fmt: skip
+    first, again = ranking(settings), ranking(settings)
+    assert first == again
+    assert len(first) == 2 * 2 * 9  # models x viewspaces x states of one episode
+    ds = nbv.dataset.open(tiny["data"])
+    for r in first:
+        model = ds.model(r["model"])
+        state = oracle_states(model, r["viewspace"], r["start"], 10)[r["captured"] - 1]
+        gains = nbv.dataset.records.score_functions(model, "coverage", r["viewspace"])[0]
+        if np.ptp(gains(state.view_state)[~state.view_state]) == 0:  # no ranks to agree with
+            assert set(r["spearman"].values()) == {None}
+    assert sum(r["spearman"]["ig"] is None for r in first) < len(first) / 2
+
+
+def test_the_command_writes_its_tables_and_refuses_methods_without_scores(tiny, tmp_path):
+    base = [sys.executable, "-m", "nbv.eval.ranking", "--data-dir", str(tiny["data"])]
+    bad = subprocess.run([*base, "--methods", "spread", "hull_sco"], capture_output=True,
+                         text=True, cwd=ROOT)  # fmt: skip
+    assert bad.returncode == 2
+    assert "['hull_sco'] have no per-view scores; allowed: random, spread" in bad.stderr
+    out = tmp_path / "rank"
+    done = subprocess.run(
+        [*base, "--limit", "1", "--out", str(out), "--methods", "spread", "vcnbv_map",
+         "--checkpoint", f"vcnbv_map={tiny['vcnbv_map']}"],
+        capture_output=True, text=True, cwd=ROOT,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    table = (out / "ranking.md").read_text()
+    assert table.startswith("| method | states | Spearman [95 %] |") and "| vcnbv_map |" in table
+    states = json.loads((out / "ranking.json").read_text())["states"]
+    assert len(states) == 2 * 8 * 9
+    values = [s["spearman"]["vcnbv_map"] for s in states if s["spearman"]["vcnbv_map"] is not None]
+    assert f"{np.mean(values):+.3f}" in table
