@@ -1,6 +1,7 @@
 """The viewspace-conditioned network: equivariance to the candidates' order, its checkpoints, its
 training samples, and a real (tiny) training run whose checkpoint plays both viewspaces."""
 
+import shutil
 from dataclasses import replace
 
 import numpy as np
@@ -200,8 +201,12 @@ def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
     # Resuming a finished run trains nothing more and gives the same result.
     assert run(settings)["last"] == result["last"]
     # More epochs extend it: the same weights as a run started with them.
+    shutil.copytree(tmp_path / "run", tmp_path / "copy")
     extended = run(replace(settings, epochs=3))
     fresh = run(replace(settings, epochs=3, out_dir=tmp_path / "three"))
+    # A copied run folder goes on from where the copy stopped.
+    copied = run(replace(settings, epochs=3, out_dir=tmp_path / "copy"))
+    assert copied["last"]["train_loss"] == fresh["last"]["train_loss"]
     assert extended["last"] == {**fresh["last"], "seconds": extended["last"]["seconds"]}
     weights = [load_conditioned(tmp_path / d / "last.pt")[0].state_dict() for d in ("run", "three")]
     assert all(torch.equal(weights[0][k], weights[1][k]) for k in weights[0])

@@ -377,11 +377,12 @@ def run(settings: ConditionedSettings) -> dict:
 
 def _same_run(saved: dict | None, wanted: dict) -> bool:
     """Whether a checkpoint's settings continue into ``wanted``: equal but for ``epochs``, which
-    may grow."""
+    may grow, and ``out_dir`` (a copied run folder goes on where the copy stopped)."""
     if saved is None:
         return False
-    rest = {k: v for k, v in saved.items() if k != "epochs"}
-    wanted_rest = {k: v for k, v in wanted.items() if k != "epochs"}
+    free = ("epochs", "out_dir")
+    rest = {k: v for k, v in saved.items() if k not in free}
+    wanted_rest = {k: v for k, v in wanted.items() if k not in free}
     return rest == wanted_rest and saved.get("epochs", 0) <= wanted["epochs"]
 
 
