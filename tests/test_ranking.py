@@ -108,7 +108,9 @@ def test_summary_exact_on_hand_made_records():
     assert rows["a"]["spearman"].mean == pytest.approx(0.5)
     assert rows["a"]["minus_spread"].mean == pytest.approx(((0.5 - 0.25) + (1.0 - 0.0)) / 2)
     assert rows["a"]["hits"] == 0.5 and rows["spread"]["hits"] == 0.0
-    assert rows["a"]["by_category"] == {"x": 0.5, "y": 0.5}
+    assert rows["a"]["by"] == "category" and rows["a"]["by_group"] == {"x": 0.5, "y": 0.5}
+    one = [{**r, "category": "default"} for r in records]  # a mesh folder: per model
+    assert summary(one, ("a",))[0]["by_group"] == {"m1": 0.5, "m2": 0.5}
     assert "minus_spread" not in rows["spread"]
 
 

@@ -12,7 +12,8 @@ picks its view by. For each state:
 * whether the best-scored unvisited view is a best one by the true gain.
 
 Written to ``--out``: ``ranking.md`` (mean Spearman with a 95 % interval resampling the models;
-minus spread, paired on the same states; best-view hits; Spearman per category) and
+minus spread, paired on the same states; best-view hits; Spearman per category, or per model
+for a mesh folder) and
 ``ranking.json`` (every state's values). Methods without per-view scores (the oracle, the
 one-shot hull planners) are refused with the list of those that have them.
 """
@@ -117,7 +118,8 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
 def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     """Per method: states ranked, mean Spearman (95 % interval resampling the models), minus
     spread on the states both rank (paired, when spread is among ``methods``), best-view hits,
-    and the mean Spearman per category."""
+    and the mean Spearman per category (``by_group``; per model when there is one category, as
+    for a mesh folder; ``by`` says which)."""
     models = np.array([r["model"] for r in records])
     rows = []
     for name in methods:
@@ -132,9 +134,10 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
                              for r in records])  # fmt: skip
             both = ok & np.isfinite(base)
             row["minus_spread"] = bootstrap_mean(rho[both] - base[both], models[both])
-        cats = sorted({r["category"] for r in records})
-        row["by_category"] = {c: float(np.nanmean(rho[[r["category"] == c for r in records]]))
-                              for c in cats}  # fmt: skip
+        field = "category" if len({r["category"] for r in records}) > 1 else "model"
+        groups = np.array([r[field] for r in records])
+        row["by"] = field
+        row["by_group"] = {g: float(np.nanmean(rho[groups == g])) for g in sorted(set(groups))}
         rows.append(row)
     return rows
 
@@ -143,16 +146,17 @@ def write(out: Path, records: list[dict], rows: list[dict]) -> None:
     """``ranking.json`` (every state) and ``ranking.md`` (the summary tables)."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "ranking.json").write_text(json.dumps({"states": records}))
-    cats = list(rows[0]["by_category"])
+    groups = list(rows[0]["by_group"])
     lines = md_table(
         ["method", "states", "Spearman [95 %]", "minus spread [95 %]", "best-view hits"],
         [[r["method"], str(r["states"]), r["spearman"].text(),
           r["minus_spread"].text() if "minus_spread" in r else "", f"{r['hits']:.3f}"]
          for r in rows],
     )  # fmt: skip
-    lines += ["", *md_table(["method", *cats],
-                            [[r["method"], *(f"{r['by_category'][c]:.2f}" for c in cats)]
-                             for r in rows])]  # fmt: skip
+    lines += ["", f"Spearman by {rows[0]['by']}:", "",
+              *md_table(["method", *groups],
+                        [[r["method"], *(f"{r['by_group'][g]:.2f}" for g in groups)]
+                         for r in rows])]  # fmt: skip
     (out / "ranking.md").write_text("\n".join([*lines, ""]))
 
 
