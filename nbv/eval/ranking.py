@@ -32,10 +32,11 @@ from nbv.dataset.records import ModelData, score_functions
 from nbv.eval.config import EvalSettings
 from nbv.eval.evaluate import exclude_selection, load_networks, open_datasets, with_shipped_weights
 from nbv.planning.scorer import load_scorer
+from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EpisodeState
-from nbv.policies.registry import METHODS, MethodContext
+from nbv.policies.registry import METHODS, SCORED, MethodContext
 from nbv.utils.markdown import md_table
-from nbv.utils.ranking import spearman_per_sample
+from nbv.utils.ranking import best_view_hit, spearman_per_sample
 from nbv.utils.stats import bootstrap_mean
 
 log = logging.getLogger("nbv.eval.ranking")
@@ -45,16 +46,16 @@ DEFAULT_METHODS = ("random", "spread", "ig", "ig_learned", "vcnbv", "vcnbv_map")
 
 
 def oracle_states(model: ModelData, viewspace: str, start: int, n_views: int) -> list[EpisodeState]:
-    """The states of the oracle's episode from ``start``: after 1, ..., ``n_views - 1``
-    captured views (greedy by the true coverage gain, ties to the lowest index)."""
-    gains, _ = score_functions(model, "coverage", viewspace)
+    """The states of the oracle's episode from ``start`` (:class:`OraclePolicy` on coverage):
+    after 1, ..., ``n_views - 1`` captured views."""
+    oracle = OraclePolicy("coverage")
     n = len(model.views[viewspace].poses)
     order, out = [start], []
     for _ in range(n_views - 1):
         state = np.zeros(n, dtype=bool)
         state[order] = True
         out.append(EpisodeState(model, viewspace, state, list(order)))
-        order.append(int(np.argmax(np.where(state, -np.inf, gains(state)))))
+        order.append(oracle(out[-1]))
     return out
 
 
@@ -74,15 +75,14 @@ def score_states(
     visited = np.stack([s.view_state for s in states])
     records = [{"viewspace": viewspace, "start": start, "captured": len(s.order),
                 "spearman": {}, "hit": {}} for s in states]  # fmt: skip
-    best = np.where(visited, -np.inf, truth).max(axis=1)
     for name in methods:
         policy = METHODS[name].build(ctx, np.random.default_rng([seed, start]))
         scores = np.stack([policy.view_scores(s) for s in states])
         rho = spearman_per_sample(scores, truth, visited)
-        picked = np.argmax(np.where(visited, -np.inf, scores), axis=1)
+        hits = best_view_hit(scores, truth, visited)
         for i, record in enumerate(records):
             record["spearman"][name] = None if np.isnan(rho[i]) else float(rho[i])
-            record["hit"][name] = bool(truth[i, picked[i]] >= best[i])
+            record["hit"][name] = bool(hits[i])
     return records
 
 
@@ -100,7 +100,7 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
     networks, skipped = load_networks(settings, n_views)
     if skipped:
         raise ValueError("; ".join(f"{m}: {reason}" for m, reason in skipped.items()))
-    scorer = load_scorer(settings.scorer_file()) if "ig_learned" in settings.methods else None
+    scorer = load_scorer(settings.scorer_file()) if set(SCORED) & set(settings.methods) else None
     records = []
     for info, ds in opened:
         exclude_selection(info, ds, networks)
@@ -120,24 +120,27 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     spread on the states both rank (paired, when spread is among ``methods``), best-view hits,
     and the mean Spearman per category (``by_group``; per model when there is one category, as
     for a mesh folder; ``by`` says which)."""
+
+    def values(name: str) -> np.ndarray:
+        return np.array([np.nan if r["spearman"][name] is None else r["spearman"][name]
+                         for r in records])  # fmt: skip
+
     models = np.array([r["model"] for r in records])
+    by = "category" if len({r["category"] for r in records}) > 1 else "model"
+    groups = np.array([r[by] for r in records])
+    base = values("spread") if "spread" in methods else None
+    names = sorted(set(groups))
     rows = []
     for name in methods:
-        rho = np.array([np.nan if r["spearman"][name] is None else r["spearman"][name]
-                        for r in records])  # fmt: skip
+        rho = values(name)
         ok = np.isfinite(rho)
         row = {"method": name, "states": int(ok.sum()),
                "spearman": bootstrap_mean(rho[ok], models[ok]),
-               "hits": float(np.mean([r["hit"][name] for r in records]))}  # fmt: skip
-        if "spread" in methods and name != "spread":
-            base = np.array([np.nan if r["spearman"]["spread"] is None else r["spearman"]["spread"]
-                             for r in records])  # fmt: skip
+               "hits": float(np.mean([r["hit"][name] for r in records])), "by": by,
+               "by_group": {g: float(np.nanmean(rho[groups == g])) for g in names}}  # fmt: skip
+        if base is not None and name != "spread":
             both = ok & np.isfinite(base)
             row["minus_spread"] = bootstrap_mean(rho[both] - base[both], models[both])
-        field = "category" if len({r["category"] for r in records}) > 1 else "model"
-        groups = np.array([r[field] for r in records])
-        row["by"] = field
-        row["by_group"] = {g: float(np.nanmean(rho[groups == g])) for g in sorted(set(groups))}
         rows.append(row)
     return rows
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from nbv.dataset.records import score_functions
-from nbv.geometry.viewspace import spread_views
+from nbv.geometry.viewspace import angular_distances, spread_views
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
@@ -51,8 +51,7 @@ class SpreadPolicy:
     def view_scores(self, state: EpisodeState) -> np.ndarray:
         """(V,) degrees from each view to its nearest visited view (what the rule maximises)."""
         d = self._directions(state)
-        cosine = (d @ d[state.view_state].T).max(axis=1)
-        return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+        return angular_distances(d, d[state.view_state]).min(axis=1)
 
     def __call__(self, state: EpisodeState) -> int:
         return spread_views(self._directions(state), state.view_state, 1)[0]

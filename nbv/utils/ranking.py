@@ -37,12 +37,16 @@ def spearman(pred: np.ndarray, target: np.ndarray, view_state: np.ndarray) -> fl
     return float(values.mean()) if len(values) else float("nan")
 
 
-def best_view_hits(pred: np.ndarray, target: np.ndarray, view_state: np.ndarray) -> float:
-    """Fraction of samples whose predicted best unvisited view is the oracle's best one.
-
-    Ties in the target count as hits when the prediction picks any of the tied best views.
-    """
+def best_view_hit(pred: np.ndarray, target: np.ndarray, view_state: np.ndarray) -> np.ndarray:
+    """(S,) bool: whether each sample's predicted best unvisited view is a true best one (ties
+    in the target count as hits when the prediction picks any of the tied best views)."""
     masked_target = np.where(view_state, -np.inf, target)
     picked = masked_argmax(pred, view_state)
     best = masked_target.max(axis=1)
-    return float(np.mean(masked_target[np.arange(len(picked)), picked] >= best))
+    return masked_target[np.arange(len(picked)), picked] >= best
+
+
+def best_view_hits(pred: np.ndarray, target: np.ndarray, view_state: np.ndarray) -> float:
+    """Fraction of samples whose predicted best unvisited view is the oracle's best one
+    (the mean of :func:`best_view_hit`)."""
+    return float(np.mean(best_view_hit(pred, target, view_state)))
