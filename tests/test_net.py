@@ -183,6 +183,12 @@ def test_smallest_indices_select_what_topk_selects() -> None:
         assert torch.equal(values.gather(-1, idx).sort(-1).values, expected)
         # No index twice in a row.
         assert (idx.sort(-1).values.diff(dim=-1) > 0).all()
+    # Rows of four distinct values only: whole groups tie at the k-th place.
+    values = torch.randint(0, 4, (64, 512), generator=g).float()
+    idx = smallest_indices(values, 16)
+    expected = values.topk(16, dim=-1, largest=False).values
+    assert torch.equal(values.gather(-1, idx).sort(-1).values, expected)
+    assert (idx.sort(-1).values.diff(dim=-1) > 0).all()
 
 
 def test_knn_of_batches_searched_in_groups_match_brute_force() -> None:

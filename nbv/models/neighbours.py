@@ -43,42 +43,43 @@ def _nearest(x: Tensor, k: int) -> Tensor:
     return smallest_indices(dist, k)
 
 
-def smallest_indices(values: Tensor, k: int, chunk: int = 16) -> Tensor:
+def smallest_indices(values: Tensor, k: int, group: int = 4) -> Tensor:
     """Indices of the ``k`` smallest entries of every row: ``values.topk(k, largest=False,
-    sorted=False).indices`` (the same set; among ties, any), in a fifth to a third less time
-    on a few 512-wide tables on the CPU. Elsewhere (CUDA) it is ``topk``.
+    sorted=False).indices`` (the same values; among ties, any indices), in a fifth less time
+    on 512-wide tables on the CPU (training's batches and one cloud alike). Elsewhere (CUDA)
+    it is ``topk``.
 
-    ``topk`` spends its time per entry of the row. The minima of ``k`` disjoint chunks of a row
-    are ``k`` of its entries, so the ``k``-th smallest chunk minimum bounds the row's ``k``-th
-    smallest entry from above; only the few entries under that bound (about 2k on 512-wide
-    rows) go through ``topk``.
+    ``topk`` spends its time per entry of the row, so it runs on few of them. The row is split
+    into disjoint groups of ``group`` entries; an entry among the ``k`` smallest lies in a group
+    whose minimum is among the ``k`` smallest group minima (a group with a smaller minimum holds
+    a smaller entry, and fewer than ``k`` entries are smaller). So ``topk`` picks the ``k`` best
+    groups of the ``M / group`` minima, then the ``k`` best of their ``k * group`` entries.
+    A group takes every ``M // group``-th entry rather than neighbouring ones: the minima then
+    run across contiguous columns, six times faster; the last ``M % group`` entries, in no
+    group, are always candidates.
 
     Args:
-        values: (..., M) float tensor, M >= k; entries may be -inf but not NaN or +inf.
+        values: (..., M) float tensor, M >= k; entries may be -inf but not NaN.
         k: entries a row.
-        chunk: entries a chunk; rows with fewer than ``k`` whole chunks use ``topk`` directly.
+        group: entries a group; rows with fewer than ``k`` whole groups use ``topk`` directly.
 
     Returns:
         (..., k) int64 indices into the last axis, in no particular order.
     """
     m = values.shape[-1]
-    if m // chunk < k or values.device.type != "cpu":
+    n_groups = m // group
+    if n_groups < k or values.device.type != "cpu":
         return values.topk(k, dim=-1, largest=False, sorted=False).indices
     rows = values.reshape(-1, m)
-    minima = rows[:, : m // chunk * chunk].reshape(len(rows), -1, chunk).amin(-1)
-    bound = minima.kthvalue(k, dim=-1, keepdim=True).values
-    row, col = (rows <= bound).nonzero(as_tuple=True)
-    # Counted from the nonzero entries: summing the bool table converts it to int64 first,
-    # which took as long as the rest of the selection.
-    counts = torch.bincount(row, minlength=len(rows))
-    # Pack each row's candidates to the left of a (rows, most candidates) table.
-    slot = torch.arange(len(row), device=rows.device) - (counts.cumsum(0) - counts)[row]
-    width = int(counts.max())
-    candidates = rows.new_full((len(rows), width), math.inf)
-    candidates[row, slot] = rows[row, col]
-    columns = torch.zeros((len(rows), width), dtype=torch.int64, device=rows.device)
-    columns[row, slot] = col
-    pick = candidates.topk(k, dim=-1, largest=False, sorted=False).indices
+    grouped = n_groups * group
+    minima = rows[:, :grouped].reshape(len(rows), group, n_groups).amin(1)
+    best = minima.topk(k, dim=-1, largest=False, sorted=False).indices
+    offsets = torch.arange(0, grouped, n_groups, device=rows.device)
+    columns = (best.unsqueeze(-1) + offsets).reshape(len(rows), k * group)
+    if grouped < m:
+        tail = torch.arange(grouped, m, device=rows.device).expand(len(rows), -1)
+        columns = torch.cat([columns, tail], dim=1)
+    pick = rows.gather(1, columns).topk(k, dim=-1, largest=False, sorted=False).indices
     return columns.gather(1, pick).reshape(*values.shape[:-1], k)
 
 
