@@ -24,7 +24,14 @@ from nbv.planning.view_features import FEATURES
 from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
-from train.conditioned import VIEWSPACES, ConditionedSettings, _pool, draw_samples, run
+from train.conditioned import (
+    VIEWSPACES,
+    ConditionedSettings,
+    _pool,
+    draw_samples,
+    run,
+    split_models,
+)
 from train.scorer import mixed_views
 
 TINY = ConditionedConfig(point_channels=(8, 16), view_channels=(8,), visited_channels=4,
@@ -214,6 +221,32 @@ def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
         run(replace(settings, epochs=2))  # fewer epochs than it holds
     with pytest.raises(ValueError, match="trained with other settings"):
         run(replace(settings, epochs=4, lr=1e-4))
+
+
+def test_held_out_categories_choose_the_checkpoint_and_are_never_trained_on(dataset, tmp_path):
+    ds = nbv.dataset.open(dataset)
+    category = {k: ds.index[k][1] for k in ds.keys()}
+    plain = ConditionedSettings(dataset, tmp_path / "plain")
+    train_keys, valid_keys = split_models(ds, plain)
+    assert train_keys == ds.keys(split="train") and valid_keys == ds.keys(split="valid")
+    settings = ConditionedSettings(
+        dataset, tmp_path / "run", epochs=1, trajectories=1, steps=2, train_points=64,
+        eval_points=64, start_views=(1,), net=TINY, select_categories=("chair", "lamp"),
+    )  # fmt: skip
+    train_keys, valid_keys = split_models(ds, settings)
+    # Both splits of the two categories validate; the other six train, on their train split.
+    assert sorted(category[k] for k in valid_keys) == ["chair", "chair", "lamp", "lamp"]
+    assert len(train_keys) == 6 and {category[k] for k in train_keys}.isdisjoint({"chair", "lamp"})
+    assert set(train_keys) <= set(ds.keys(split="train"))
+    run(settings)
+    extra = load_conditioned(tmp_path / "run" / "best.pt")[1]
+    assert sorted(extra["selection_keys"]) == sorted(valid_keys) and extra["train_models"] == 6
+    assert ConditionedPolicy.from_checkpoint(tmp_path / "run" / "best.pt").selected_on == tuple(
+        extra["selection_keys"]
+    )
+    for bad in (("piano",), tuple(plain.categories)):
+        with pytest.raises(ValueError, match=r"select_categories=\[.*must be some, not all"):
+            replace(settings, select_categories=bad)
 
 
 def test_a_real_training_run_with_map_features(dataset, tmp_path):

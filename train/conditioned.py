@@ -22,8 +22,13 @@ features are counts along rays and angles, which the turn of step 2 leaves uncha
 
 Every epoch draws new samples from ``(seed, epoch)``. The checkpoint kept as ``best.pt`` has the
 best mean validation AUC over the ``original`` and ``permuted`` viewspaces, on the *valid* split
-of the training categories; the unseen categories take no part. ``out_dir`` gets ``best.pt``,
-``last.pt`` and ``metrics.csv`` (train and validation loss and Spearman, AUC per viewspace).
+of the training categories; the unseen categories take no part. With ``select_categories`` the
+validation models are instead every model (train and valid splits) of those training categories,
+which then take no part in training: the checkpoint is chosen, and the validation Spearman
+measured, on categories the network never saw, as the unseen ones will be.
+
+``out_dir`` gets ``best.pt``, ``last.pt`` and ``metrics.csv`` (train and validation loss and
+Spearman, AUC per viewspace).
 """
 
 from __future__ import annotations
@@ -97,6 +102,7 @@ class ConditionedSettings:
     map_features: bool = False
     start_views: tuple[int, ...] = DEFAULT_START_VIEWS
     categories: tuple[str, ...] = TRAIN_CATEGORIES
+    select_categories: tuple[str, ...] = ()
     net: ConditionedConfig = field(default_factory=ConditionedConfig)
 
     def __post_init__(self) -> None:
@@ -114,6 +120,12 @@ class ConditionedSettings:
         for key, ok, allowed in checks:
             if not ok:
                 raise ValueError(f"{key}={getattr(self, key)!r}: must be {allowed}")
+        chosen = set(self.select_categories)
+        if not chosen <= set(self.categories) or chosen >= set(self.categories):
+            raise ValueError(
+                f"select_categories={list(self.select_categories)}: must be some, not all, of "
+                f"the training categories {', '.join(self.categories)}"
+            )
 
 
 @dataclass(frozen=True)
@@ -282,17 +294,12 @@ def run(settings: ConditionedSettings) -> dict:
     if settings.threads:
         torch.set_num_threads(settings.threads)
     dataset = nbv.dataset.open(settings.dataset)
-    categories = set(settings.categories)
-    train_keys = [k for k in dataset.keys(split="train") if dataset.index[k][1] in categories]
-    valid_keys = [k for k in dataset.keys(split="valid") if dataset.index[k][1] in categories]
-    if not train_keys or not valid_keys:
-        raise ValueError(
-            f"{settings.dataset}: {len(train_keys)} train and {len(valid_keys)} valid models of "
-            f"the training categories; both are needed"
-        )
+    train_keys, valid_keys = split_models(dataset, settings)
     categories_of = [dataset.index[k][1] for k in train_keys]
     train_keys = subset(train_keys, categories_of, settings.max_models, settings.seed)
-    log.info("%d training, %d validation models", len(train_keys), len(valid_keys))
+    held = ", ".join(settings.select_categories)
+    log.info("%d training, %d validation models%s", len(train_keys), len(valid_keys),
+             f" (of {held})" if held else "")  # fmt: skip
     volumetric = VolumetricSettings()  # ig's defaults: the map of the map features
     pooled = volumetric if settings.map_features else None
     t0 = time.perf_counter()
@@ -310,10 +317,8 @@ def run(settings: ConditionedSettings) -> dict:
     out = settings.out_dir
     out.mkdir(parents=True, exist_ok=True)
     plain = {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(settings).items()}
-    plain["start_views"], plain["categories"] = (
-        list(plain["start_views"]),
-        list(plain["categories"]),
-    )
+    for key in ("start_views", "categories", "select_categories"):
+        plain[key] = list(plain[key])
     plain["net"] = net.to_dict()
     rows, best, first = [], -np.inf, 0
     last = out / "last.pt"
@@ -375,11 +380,42 @@ def run(settings: ConditionedSettings) -> dict:
     return {"last": rows[-1], "best_val_auc": best}
 
 
+def split_models(dataset, settings: ConditionedSettings) -> tuple[list[str], list[str]]:
+    """The training and the validation models of ``dataset``: the train and the valid split of
+    the training categories, or, with ``select_categories``, the train split of the others and
+    every train and valid model of those.
+
+    Raises:
+        ValueError: either list is empty.
+    """
+    chosen = set(settings.select_categories)
+    trained = set(settings.categories) - chosen
+
+    def of(categories: set[str], *splits: str) -> list[str]:
+        keys = [k for s in splits for k in dataset.keys(split=s)]
+        return [k for k in keys if dataset.index[k][1] in categories]
+
+    train_keys = of(trained, "train")
+    valid_keys = of(chosen, "train", "valid") if chosen else of(trained, "valid")
+    if not train_keys or not valid_keys:
+        where = f"of {', '.join(sorted(chosen))} " if chosen else ""
+        raise ValueError(
+            f"{settings.dataset}: {len(train_keys)} training and {len(valid_keys)} validation "
+            f"models {where}among the training categories; both are needed"
+        )
+    return train_keys, valid_keys
+
+
+#: Settings added after runs were trained, with the value those runs had (they resume).
+_ADDED = {"select_categories": []}
+
+
 def _same_run(saved: dict | None, wanted: dict) -> bool:
     """Whether a checkpoint's settings continue into ``wanted``: equal but for ``epochs``, which
     may grow, and ``out_dir`` (a copied run folder goes on where the copy stopped)."""
     if saved is None:
         return False
+    saved = {**_ADDED, **saved}
     free = ("epochs", "out_dir")
     rest = {k: v for k, v in saved.items() if k not in free}
     wanted_rest = {k: v for k, v in wanted.items() if k not in free}
@@ -417,6 +453,7 @@ def settings_from_config(cfg) -> ConditionedSettings:
     del c["protocol"], c["paths"]
     c["dataset"], c["out_dir"] = Path(c["dataset"]), Path(c["out_dir"])
     c["start_views"] = tuple(c["start_views"])
+    c["select_categories"] = tuple(c["select_categories"])
     widths = {k: tuple(v) if isinstance(v, list) else v for k, v in c["net"].items()}
     try:
         c["net"] = ConditionedConfig(**{k: v for k, v in widths.items() if v is not None})
