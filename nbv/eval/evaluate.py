@@ -161,6 +161,15 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
     return out
 
 
+def method_context(
+    settings: EvalSettings, ds: Dataset, networks: dict[str, NetworkPolicy], scorer=None
+) -> MethodContext:
+    """What the methods of ``settings`` need on the dataset ``ds``: its camera and eps, the
+    loaded networks, the run's planner settings and ``ig_learned``'s scorer (None without it)."""
+    return MethodContext(networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]),
+                         settings.n_views, settings.ig, scorer=scorer)  # fmt: skip
+
+
 def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, NetworkPolicy]) -> None:
     """Leave out of ``info.keys`` the models whose episodes chose a network's checkpoint, for
     every method (the comparison stays paired), noting each in ``info.excluded``."""
@@ -351,10 +360,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     infos = {info.name: info for info, _ in opened}
     tasks, done_before = [], {}
     for info, ds in opened:
-        ctx = MethodContext(
-            networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]), settings.n_views,
-            settings.ig, scorer=scorer,
-        )  # fmt: skip
+        ctx = method_context(settings, ds, networks, scorer)
         for key in info.keys:
             done = episodes.done.get((info.name, key))
             if done is None:

@@ -30,7 +30,13 @@ import numpy as np
 
 from nbv.dataset.records import ModelData, score_functions
 from nbv.eval.config import EvalSettings
-from nbv.eval.evaluate import exclude_selection, load_networks, open_datasets, with_shipped_weights
+from nbv.eval.evaluate import (
+    exclude_selection,
+    load_networks,
+    method_context,
+    open_datasets,
+    with_shipped_weights,
+)
 from nbv.planning.scorer import load_scorer
 from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EpisodeState
@@ -104,8 +110,7 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
     records = []
     for info, ds in opened:
         exclude_selection(info, ds, networks)
-        ctx = MethodContext(networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]),
-                            settings.n_views, settings.ig, scorer=scorer)  # fmt: skip
+        ctx = method_context(settings, ds, networks, scorer)
         for key in tqdm(info.keys, desc=f"ranking {info.name}", disable=not settings.progress):
             model = ds.model(key, settings.viewspaces)
             for vs in settings.viewspaces:
