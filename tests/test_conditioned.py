@@ -207,6 +207,12 @@ def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
         assert len(set(episode.views)) == 10
     # Resuming a finished run trains nothing more and gives the same result.
     assert run(settings)["last"] == result["last"]
+    # So does a run saved before select_categories existed.
+    shutil.copytree(tmp_path / "run", tmp_path / "older")
+    net, extra = load_conditioned(tmp_path / "older" / "last.pt")
+    del extra["settings"]["select_categories"]
+    save_conditioned(tmp_path / "older" / "last.pt", net, extra)
+    assert run(replace(settings, out_dir=tmp_path / "older"))["last"] == result["last"]
     # More epochs extend it: the same weights as a run started with them.
     shutil.copytree(tmp_path / "run", tmp_path / "copy")
     extended = run(replace(settings, epochs=3))
