@@ -36,7 +36,37 @@ def test_listwise_is_cross_entropy_over_the_unvisited_views():
     assert float(uniform[1]) == 0.0
 
 
+def test_pairwise_agrees_with_a_loop_over_the_pairs():
+    generator = torch.Generator().manual_seed(0)
+    pred = torch.randn(5, 7, generator=generator)
+    # Gains with ties (rounded), some visited views, and a sample whose open views all gain alike.
+    target = (torch.rand(5, 7, generator=generator) * 4).round() / 10
+    state = (torch.rand(5, 7, generator=generator) < 0.3).float()
+    target[4], state[4] = 0.3, torch.tensor([1.0, 0, 0, 0, 0, 0, 1])
+    expected = []
+    for p, t, s in zip(pred.tolist(), target.tolist(), state.tolist(), strict=True):
+        open_ = [i for i in range(7) if s[i] == 0]
+        terms = [math.log1p(math.exp(-(p[i] - p[j]))) for i in open_ for j in open_ if t[i] > t[j]]
+        expected.append(sum(terms) / len(terms) if terms else 0.0)
+    loss = per_sample_loss("pairwise", pred, target, state)
+    torch.testing.assert_close(loss, torch.tensor(expected))
+    # The gain-free sample takes no part in the batch's mean.
+    assert float(batch_loss("pairwise", pred, target, state)) == pytest.approx(
+        sum(expected[:4]) / 4
+    )
+    # Only the gains' order matters.
+    torch.testing.assert_close(per_sample_loss("pairwise", pred, target.exp() * 3, state), loss)
+
+
+def test_pairwise_on_values_worked_out_by_hand():
+    # Open views 1, 2, 3 with gains 0.2, 0.1, 0.1: the ordered pairs are (1, 2) and (1, 3).
+    pred = torch.tensor([[5.0, 1.0, 1.0, 0.0], [0.0] * 4])
+    loss = per_sample_loss("pairwise", pred, TARGET, STATE)
+    assert float(loss[0]) == pytest.approx((math.log(2) + math.log1p(math.exp(-1))) / 2)
+    assert float(loss[1]) == 0.0  # two open views, both without gain: no pair
+
+
 def test_unknown_loss():
-    assert LOSSES == ("squared", "normalised", "listwise")
+    assert LOSSES == ("squared", "normalised", "listwise", "pairwise")
     with pytest.raises(ValueError, match="loss='rank': must be one of squared"):
         per_sample_loss("rank", TARGET, TARGET, STATE)

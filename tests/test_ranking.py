@@ -15,10 +15,10 @@ from test_policies import make_tiny_dataset, save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.eval.config import EvalSettings
-from nbv.eval.ranking import RANKED, oracle_states, ranking, summary
+from nbv.eval.ranking import RANKED, oracle_states, ranking, reliability_summary, summary
 from nbv.policies.baselines import OraclePolicy
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
-from nbv.utils.ranking import spearman, spearman_per_sample
+from nbv.utils.ranking import spearman, spearman_per_sample, split_half_reliability
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -96,13 +96,36 @@ def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
         assert best[picking(state)] == best.max()
 
 
-def test_summary_exact_on_hand_made_records():
-    def record(model, cat, a, s, hit):
-        return {"model": model, "category": cat, "spearman": {"a": a, "spread": s},
-                "hit": {"a": hit, "spread": False}}  # fmt: skip
+def test_split_half_reliability_on_gains_with_known_order():
+    rng = np.random.default_rng(0)
+    # Views 1-3 add 0, 1,000 and 3,000 of 4,000 points to view 0's: any split keeps the order.
+    covered = np.zeros((4, 4000), dtype=bool)
+    covered[0, :1000], covered[2, 1000:2000], covered[3, 1000:] = True, True, True
+    covered[1, :1000] = True  # nothing new
+    visited = np.array([True, False, False, False])
+    assert split_half_reliability(covered, visited, rng) == pytest.approx(1.0)
+    # Twenty views that each cover every point with the same chance, 1 in 400: what orders their
+    # gains is the draw alone, and the two halves' draws are independent. One state's value is
+    # noisy (about 0.3 with 20 views); the mean over 100 such states is 0 within 0.1.
+    values = []
+    for _ in range(100):
+        noise = rng.random((21, 20_000)) < 2.5e-3
+        values.append(split_half_reliability(noise, np.arange(21) == 0, rng, splits=10))
+    assert abs(np.mean(values)) < 0.1
+    # Views that all add alike (or fewer than two unvisited ones): no ranks, NaN.
+    assert np.isnan(split_half_reliability(covered[[0, 1, 1]], visited[:3], rng))
+    assert np.isnan(split_half_reliability(covered, np.array([True, True, True, False]), rng))
 
-    records = [record("m1", "x", 0.5, 0.25, True), record("m1", "x", None, 0.5, False),
-               record("m2", "y", 1.0, 0.0, True), record("m2", "y", 0.0, None, False)]  # fmt: skip
+
+def test_summary_exact_on_hand_made_records():
+    def record(model, cat, a, s, hit, captured=1, truth=None):
+        return {"model": model, "category": cat, "spearman": {"a": a, "spread": s},
+                "hit": {"a": hit, "spread": False}, "captured": captured,
+                "truth_reliability": truth}  # fmt: skip
+
+    records = [record("m1", "x", 0.5, 0.25, True, 1, 0.9), record("m1", "x", None, 0.5, False, 2),
+               record("m2", "y", 1.0, 0.0, True, 1, 0.7),
+               record("m2", "y", 0.0, None, False, 2, 0.2)]  # fmt: skip
     rows = {r["method"]: r for r in summary(records, ("spread", "a"))}
     assert rows["a"]["states"] == 3 and rows["spread"]["states"] == 3
     assert rows["a"]["spearman"].mean == pytest.approx(0.5)
@@ -112,6 +135,12 @@ def test_summary_exact_on_hand_made_records():
     one = [{**r, "category": "default"} for r in records]  # a mesh folder: per model
     assert summary(one, ("a",))[0]["by_group"] == {"m1": 0.5, "m2": 0.5}
     assert "minus_spread" not in rows["spread"]
+    assert rows["a"]["by_captured"] == {1: 0.75, 2: 0.0}
+    assert rows["spread"]["by_captured"] == {1: 0.125, 2: 0.5}
+    truth = reliability_summary(records)
+    assert truth["states"] == 3 and truth["mean"].mean == pytest.approx(0.6)
+    assert truth["by_captured"] == pytest.approx({1: 0.8, 2: 0.2})
+    assert reliability_summary([{**r, "truth_reliability": None} for r in records]) is None
 
 
 def test_ranking_is_deterministic_and_leaves_out_states_without_ranks(tiny):
@@ -149,3 +178,10 @@ def test_the_command_writes_its_tables_and_refuses_methods_without_scores(tiny, 
     assert len(states) == 2 * 8 * 9
     values = [s["spearman"]["vcnbv_map"] for s in states if s["spearman"]["vcnbv_map"] is not None]
     assert f"{np.mean(values):+.3f}" in table
+    assert "Spearman by views captured, and the split-half reliability" in table
+    assert "| method | 1 | 2 | 3 | 4 | 5 | 6 | 7 | 8 | 9 |" in table
+    first = [s["spearman"]["vcnbv_map"] for s in states if s["captured"] == 1]
+    row = next(line for line in table.splitlines()
+               if line.startswith("| vcnbv_map |") and line.count("|") == 11)  # fmt: skip
+    assert row.split(" | ")[1] == f"{np.nanmean(np.array(first, dtype=float)):.2f}"
+    assert "| true gains' split-half reliability |" in table

@@ -30,7 +30,7 @@ from nbv.policies.episode import DEFAULT_START_VIEWS
 
 SCORES = ("coverage", "vig")
 #: The training losses (:mod:`train.losses`), named here so that settings load without torch.
-LOSSES = ("squared", "normalised", "listwise")
+LOSSES = ("squared", "normalised", "listwise", "pairwise")
 INPUTS = ("points", "signature")
 DEVICES = ("auto", "cpu", "cuda")
 #: How the evaluated checkpoint (best.pt) is chosen: by the validation AUC on the valid split of

@@ -8,11 +8,17 @@
   gains normalised to sum to 1: the network learns which views gain most relative to the others,
   not the gains' scale. Samples without gain take no part. The outputs are then scores, not gains;
   the best view is still their argmax.
+* ``pairwise``: RankNet's logistic loss over every ordered pair of unvisited views,
+  ``log(1 + exp(-(s_i - s_j)))`` for each pair whose true gains order ``i`` above ``j``, averaged
+  over the sample's pairs. Every pair weighs alike, as in the rank correlation the training
+  reports; the listwise loss instead weighs the views by their share of the gain. It depends on
+  the gains only through their order. Samples whose unvisited views all gain alike take no part.
 """
 
 from __future__ import annotations
 
 import torch
+import torch.nn.functional as F
 
 from train.config import LOSSES
 
@@ -51,16 +57,38 @@ def per_sample_loss(
         logits = pred.masked_fill(~open_, float("-inf"))
         log_p = torch.log_softmax(logits, dim=1).masked_fill(~open_, 0.0)
         return -(weights * log_p).sum(dim=1)
+    if name == "pairwise":
+        above = _ordered_pairs(target, view_state)
+        # softplus(-(s_i - s_j)) = log(1 + exp(-(s_i - s_j))), without overflow.
+        pair_loss = F.softplus(pred[:, None, :] - pred[:, :, None])
+        return (pair_loss * above).sum(dim=(1, 2)) / above.sum(dim=(1, 2)).clamp_min(1)
     raise ValueError(f"loss={name!r}: must be one of {', '.join(LOSSES)}")
+
+
+def _ordered_pairs(target: torch.Tensor, view_state: torch.Tensor) -> torch.Tensor:
+    """(B, V, V) float: 1 where views ``i`` and ``j`` are both unvisited and ``i`` gains more."""
+    open_ = view_state < 0.5
+    both = open_[:, :, None] & open_[:, None, :]
+    return ((target[:, :, None] > target[:, None, :]) & both).float()
+
+
+def _counted(name: str, target: torch.Tensor, view_state: torch.Tensor) -> torch.Tensor | None:
+    """(B,) bool: the samples a ranking loss learns from (None: every sample counts)."""
+    if name == "listwise":
+        return (torch.where(view_state < 0.5, target, torch.zeros_like(target)) > 0).any(dim=1)
+    if name == "pairwise":
+        return _ordered_pairs(target, view_state).flatten(1).any(dim=1)
+    return None
 
 
 def batch_loss(
     name: str, pred: torch.Tensor, target: torch.Tensor, view_state: torch.Tensor
 ) -> torch.Tensor:
-    """Mean of :func:`per_sample_loss` over the batch (over the samples with gain for
-    ``listwise``); a scalar tensor."""
+    """Mean of :func:`per_sample_loss` over the batch (for ``listwise`` over the samples with
+    gain, for ``pairwise`` over those with two unvisited views of different gains); a scalar
+    tensor."""
     losses = per_sample_loss(name, pred, target, view_state)
-    if name == "listwise":
-        counted = (torch.where(view_state < 0.5, target, torch.zeros_like(target)) > 0).any(dim=1)
-        return (losses * counted).sum() / counted.sum().clamp_min(1)
-    return losses.mean()
+    counted = _counted(name, target, view_state)
+    if counted is None:
+        return losses.mean()
+    return (losses * counted).sum() / counted.sum().clamp_min(1)

@@ -9,11 +9,14 @@ picks its view by. For each state:
 
 * Spearman's rank correlation of the scores against the true coverage gains of the unvisited
   views (a state whose unvisited views all gain alike has no ranks and is left out);
-* whether the best-scored unvisited view is a best one by the true gain.
+* whether the best-scored unvisited view is a best one by the true gain;
+* the split-half reliability of the true gains' own ranking over the ground-truth points
+  (:func:`~nbv.utils.ranking.split_half_reliability`): late in an episode a view gains a
+  handful of points, and their order is then largely the sampling's.
 
 Written to ``--out``: ``ranking.md`` (mean Spearman with a 95 % interval resampling the models;
 minus spread, paired on the same states; best-view hits; Spearman per category, or per model
-for a mesh folder) and
+for a mesh folder; Spearman per number of captured views beside the truth's reliability) and
 ``ranking.json`` (every state's values). Methods without per-view scores (the oracle, the
 one-shot hull planners) are refused with the list of those that have them.
 """
@@ -42,7 +45,7 @@ from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EpisodeState
 from nbv.policies.registry import METHODS, SCORED, MethodContext
 from nbv.utils.markdown import md_table
-from nbv.utils.ranking import best_view_hit, spearman_per_sample
+from nbv.utils.ranking import best_view_hit, spearman_per_sample, split_half_reliability
 from nbv.utils.stats import bootstrap_mean
 
 log = logging.getLogger("nbv.eval.ranking")
@@ -73,14 +76,23 @@ def score_states(
     ctx: MethodContext,
     seed: int,
 ) -> list[dict]:
-    """One record per state of the oracle's episode: the true gains, and each method's Spearman
-    and best-view hit (``{"spearman": {method: value or None}, "hit": {method: bool}, ...}``)."""
+    """One record per state of the oracle's episode: each method's Spearman and best-view hit
+    (``{"spearman": {method: value or None}, "hit": {method: bool}, ...}``) and the split-half
+    reliability of the true gains' ranking (``truth_reliability``, None where undefined;
+    :func:`~nbv.utils.ranking.split_half_reliability`)."""
     states = oracle_states(model, viewspace, start, ctx.n_views)
     gains, _ = score_functions(model, "coverage", viewspace)
     truth = np.stack([gains(s.view_state) for s in states])
     visited = np.stack([s.view_state for s in states])
-    records = [{"viewspace": viewspace, "start": start, "captured": len(s.order),
-                "spearman": {}, "hit": {}} for s in states]  # fmt: skip
+    n_gt = len(model.gt_points)
+    covered = np.unpackbits(model.views[viewspace].coverage, axis=1, count=n_gt).astype(bool)
+    splits = np.random.default_rng([seed, start, n_gt])
+    records = []
+    for s in states:
+        reliability = split_half_reliability(covered, s.view_state, splits)
+        records.append({"viewspace": viewspace, "start": start, "captured": len(s.order),
+                        "truth_reliability": None if np.isnan(reliability) else reliability,
+                        "spearman": {}, "hit": {}})  # fmt: skip
     for name in methods:
         policy = METHODS[name].build(ctx, np.random.default_rng([seed, start]))
         scores = np.stack([policy.view_scores(s) for s in states])
@@ -123,18 +135,20 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
 def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     """Per method: states ranked, mean Spearman (95 % interval resampling the models), minus
     spread on the states both rank (paired, when spread is among ``methods``), best-view hits,
-    and the mean Spearman per category (``by_group``; per model when there is one category, as
-    for a mesh folder; ``by`` says which)."""
+    the mean Spearman per category (``by_group``; per model when there is one category, as
+    for a mesh folder; ``by`` says which) and per number of captured views (``by_captured``)."""
 
     def values(name: str) -> np.ndarray:
         return np.array([np.nan if r["spearman"][name] is None else r["spearman"][name]
                          for r in records])  # fmt: skip
 
     models = np.array([r["model"] for r in records])
+    captured = np.array([r["captured"] for r in records])
     by = "category" if len({r["category"] for r in records}) > 1 else "model"
     groups = np.array([r[by] for r in records])
     base = values("spread") if "spread" in methods else None
     names = sorted(set(groups))
+
     rows = []
     for name in methods:
         rho = values(name)
@@ -142,7 +156,8 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
         row = {"method": name, "states": int(ok.sum()),
                "spearman": bootstrap_mean(rho[ok], models[ok]),
                "hits": float(np.mean([r["hit"][name] for r in records])), "by": by,
-               "by_group": {g: float(np.nanmean(rho[groups == g])) for g in names}}  # fmt: skip
+               "by_group": {g: _mean(rho[groups == g]) for g in names},
+               "by_captured": _by_captured(rho, captured)}  # fmt: skip
         if base is not None and name != "spread":
             both = ok & np.isfinite(base)
             row["minus_spread"] = bootstrap_mean(rho[both] - base[both], models[both])
@@ -150,11 +165,39 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     return rows
 
 
-def write(out: Path, records: list[dict], rows: list[dict]) -> None:
-    """``ranking.json`` (every state) and ``ranking.md`` (the summary tables)."""
+def reliability_summary(records: list[dict]) -> dict | None:
+    """The true gains' split-half reliability (``truth_reliability`` of the records): states
+    where it is defined, its mean with a 95 % interval resampling the models, and its mean per
+    number of captured views (``by_captured``); None where it is nowhere defined."""
+    truth = np.array([np.nan if r.get("truth_reliability") is None else r["truth_reliability"]
+                      for r in records])  # fmt: skip
+    ok = np.isfinite(truth)
+    if not ok.any():
+        return None
+    models = np.array([r["model"] for r in records])
+    captured = np.array([r["captured"] for r in records])
+    return {"states": int(ok.sum()), "mean": bootstrap_mean(truth[ok], models[ok]),
+            "by_captured": _by_captured(truth, captured)}  # fmt: skip
+
+
+def _by_captured(values: np.ndarray, captured: np.ndarray) -> dict[int, float]:
+    """Mean of the finite ``values`` of the states with each number of captured views."""
+    return {int(c): _mean(values[captured == c]) for c in sorted(set(captured.tolist()))}
+
+
+def _mean(values: np.ndarray) -> float:
+    """Mean over the finite values; NaN when there are none (without numpy's warning)."""
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if len(finite) else float("nan")
+
+
+def write(out: Path, records: list[dict], rows: list[dict], truth: dict | None) -> None:
+    """``ranking.json`` (every state) and ``ranking.md`` (the summary tables of
+    :func:`summary`'s ``rows`` and :func:`reliability_summary`'s ``truth``)."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "ranking.json").write_text(json.dumps({"states": records}))
     groups = list(rows[0]["by_group"])
+    steps = list(rows[0]["by_captured"])
     lines = md_table(
         ["method", "states", "Spearman [95 %]", "minus spread [95 %]", "best-view hits"],
         [[r["method"], str(r["states"]), r["spearman"].text(),
@@ -165,6 +208,15 @@ def write(out: Path, records: list[dict], rows: list[dict]) -> None:
               *md_table(["method", *groups],
                         [[r["method"], *(f"{r['by_group'][g]:.2f}" for g in groups)]
                          for r in rows])]  # fmt: skip
+    by_step = [[r["method"], *(f"{r['by_captured'][c]:.2f}" for c in steps)] for r in rows]
+    text = "Spearman by views captured"
+    if truth is not None:
+        cells = [f"{truth['by_captured'].get(c, np.nan):.2f}" for c in steps]
+        by_step.append(["true gains' split-half reliability", *cells])
+        text += (f", and the split-half reliability of the true gains' ranking (mean "
+                 f"{truth['mean'].text(signed=False)} over {truth['states']} states): a "
+                 "scorer's Spearman can hardly exceed its square root")  # fmt: skip
+    lines += ["", f"{text}:", "", *md_table(["method", *map(str, steps)], by_step)]
     (out / "ranking.md").write_text("\n".join([*lines, ""]))
 
 
@@ -193,7 +245,7 @@ def main() -> None:
     except ValueError as err:
         parser.exit(2, f"nbv.eval.ranking: {err}\n")
     rows = summary(records, settings.methods)
-    write(args.out, records, rows)
+    write(args.out, records, rows, reliability_summary(records))
     for r in rows:
         log.info("%s: Spearman %s over %d states", r["method"], r["spearman"].text(), r["states"])
 

@@ -50,3 +50,41 @@ def best_view_hits(pred: np.ndarray, target: np.ndarray, view_state: np.ndarray)
     """Fraction of samples whose predicted best unvisited view is the oracle's best one
     (the mean of :func:`best_view_hit`)."""
     return float(np.mean(best_view_hit(pred, target, view_state)))
+
+
+def split_half_reliability(
+    covered: np.ndarray, view_state: np.ndarray, rng: np.random.Generator, splits: int = 4
+) -> float:
+    """How far the true coverage gains of one state rank the views reproducibly: the split-half
+    reliability of their ranking over the ground-truth points.
+
+    The ground-truth points are split at random into two halves; the unvisited views' gains
+    counted on each half are rank-correlated (Spearman), the correlation is averaged over
+    ``splits`` splits and stepped up to the whole set by Spearman-Brown, ``2 r / (1 + r)``. Late
+    in an episode a view gains a handful of points, and which views gain a few more is then
+    largely which points were sampled: no scorer's Spearman against the gains can be expected
+    above about the square root of this value.
+
+    Args:
+        covered: (V, N) bool, the ground-truth points each view covers.
+        view_state: (V,) bool, True for visited views.
+        rng: draws the splits.
+        splits: random splits averaged.
+
+    Returns:
+        The reliability, at most 1 (a negative mean correlation is returned as it is: there is
+        nothing to step up); NaN when no split gives both halves ranks (fewer than two
+        unvisited views, or all gaining alike on a half).
+    """
+    state = np.asarray(view_state, dtype=bool)
+    new = covered[~state] & ~covered[state].any(axis=0)
+    values = []
+    for _ in range(splits):
+        half = rng.random(covered.shape[1]) < 0.5
+        a, b = new[:, half].sum(axis=1), new[:, ~half].sum(axis=1)
+        if len(a) >= 2 and np.ptp(a) > 0 and np.ptp(b) > 0:
+            values.append(spearmanr(a, b).statistic)
+    if not values:
+        return float("nan")
+    r = float(np.mean(values))
+    return 2 * r / (1 + r) if r > 0 else r
