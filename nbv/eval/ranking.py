@@ -139,8 +139,7 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     for a mesh folder; ``by`` says which) and per number of captured views (``by_captured``)."""
 
     def values(name: str) -> np.ndarray:
-        return np.array([np.nan if r["spearman"][name] is None else r["spearman"][name]
-                         for r in records])  # fmt: skip
+        return np.array([r["spearman"][name] for r in records], dtype=float)  # None -> NaN
 
     models = np.array([r["model"] for r in records])
     captured = np.array([r["captured"] for r in records])
@@ -148,7 +147,6 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     groups = np.array([r[by] for r in records])
     base = values("spread") if "spread" in methods else None
     names = sorted(set(groups))
-
     rows = []
     for name in methods:
         rho = values(name)
@@ -169,8 +167,7 @@ def reliability_summary(records: list[dict]) -> dict | None:
     """The true gains' split-half reliability (``truth_reliability`` of the records): states
     where it is defined, its mean with a 95 % interval resampling the models, and its mean per
     number of captured views (``by_captured``); None where it is nowhere defined."""
-    truth = np.array([np.nan if r.get("truth_reliability") is None else r["truth_reliability"]
-                      for r in records])  # fmt: skip
+    truth = np.array([r.get("truth_reliability") for r in records], dtype=float)  # None -> NaN
     ok = np.isfinite(truth)
     if not ok.any():
         return None
