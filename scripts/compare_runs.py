@@ -6,6 +6,8 @@ Used to show that a refactoring changed no output:
     python scripts/compare_runs.py ckpt BEFORE.pt AFTER.pt        # every weight tensor
     python scripts/compare_runs.py results BEFORE.json AFTER.json # every episode's views and curves
     python scripts/compare_runs.py all BEFORE_DIR AFTER_DIR       # all three, every file of a tree
+    python scripts/compare_runs.py files BEFORE_DIR AFTER_DIR     # every file, byte for byte
+    python scripts/compare_runs.py plan BEFORE.json AFTER.json    # a plan.json, timings aside
 
 (``scripts/reference_outputs.sh`` makes such a tree.)
 
@@ -105,6 +107,45 @@ def compare_results(before: Path, after: Path) -> list[str]:
     return problems
 
 
+def compare_files(before: Path, after: Path) -> list[str]:
+    """Files of two trees that differ byte for byte, or exist in only one (JSON files compared
+    parsed, without the keys that hold wall-clock times or dates)."""
+    names_b = {p.relative_to(before) for p in before.rglob("*") if p.is_file()}
+    names_a = {p.relative_to(after) for p in after.rglob("*") if p.is_file()}
+    problems = [f"{name}: only in one tree" for name in sorted(names_b ^ names_a)]
+    for name in sorted(names_b & names_a):
+        b, a = before / name, after / name
+        if name.suffix == ".json":
+            problems += [f"{name}: {line}" for line in compare_plan(b, a)]
+        elif b.read_bytes() != a.read_bytes():
+            problems.append(f"{name}: differs")
+    print(f"{before}: {len(names_b)} files, {len(problems)} differ")
+    return problems
+
+
+def _untimed(value: object) -> object:
+    """A parsed JSON value without the keys that record times (they differ between runs)."""
+    if isinstance(value, dict):
+        return {
+            k: _untimed(v)
+            for k, v in value.items()
+            if not any(word in k for word in ("time", "seconds", "date", "created"))
+        }
+    if isinstance(value, list):
+        return [_untimed(v) for v in value]
+    return value
+
+
+def compare_plan(before: Path, after: Path) -> list[str]:
+    """Differences between two JSON files (a ``plan.json``, a manifest), timings aside."""
+    b = _untimed(json.loads(before.read_text()))
+    a = _untimed(json.loads(after.read_text()))
+    if b == a:
+        return []
+    keys = sorted(set(b) | set(a)) if isinstance(b, dict) and isinstance(a, dict) else [""]
+    return [f"{before.name}: {k} differs" for k in keys if k == "" or b.get(k) != a.get(k)]
+
+
 def compare_all(before: Path, after: Path) -> list[str]:
     """Every HDF5 file, checkpoint and ``results.json`` of two trees, matched by relative path."""
     problems = compare_h5(before, after)
@@ -122,11 +163,18 @@ def compare_all(before: Path, after: Path) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("kind", choices=("h5", "ckpt", "results", "all"))
+    parser.add_argument("kind", choices=("h5", "ckpt", "results", "all", "files", "plan"))
     parser.add_argument("before", type=Path)
     parser.add_argument("after", type=Path)
     args = parser.parse_args(argv)
-    kinds = {"h5": compare_h5, "ckpt": compare_ckpt, "results": compare_results, "all": compare_all}
+    kinds = {
+        "h5": compare_h5,
+        "ckpt": compare_ckpt,
+        "results": compare_results,
+        "all": compare_all,
+        "files": compare_files,
+        "plan": compare_plan,
+    }
     compare = kinds[args.kind]
     problems = compare(args.before, args.after)
     for line in problems:

@@ -7,7 +7,11 @@
 # A: the Blender dataset of 8 models, one epoch of PCNBV (fold 1: the 8 models are airplanes and
 #    cabinets), the evaluation of its test split (2 models a dataset).
 # B: a ray-cast dataset of every category, one epoch of PCNBV-sph, both networks evaluated on 2
-#    unseen models. About 10 minutes on 2 cores.
+#    unseen models; that evaluation exported in PC-NBV's layout (exportB).
+# planA: `nbv.plan` on a mesh of ../shared/meshes (ig, 4 views, 2 captures saved), when the folder
+#    exists. About 12 minutes on 2 cores. Compare those with
+#   python scripts/compare_runs.py files BEFORE/exportB AFTER/exportB   (every file, byte for byte)
+#   python scripts/compare_runs.py plan BEFORE/planA/plan.json AFTER/planA/plan.json
 set -euo pipefail
 OUT=$(realpath -m "$1")
 CODE=$(realpath "${2:-$(dirname "$0")/..}")
@@ -34,3 +38,9 @@ step trainB $PY -m train dataset="$OUT/dsB" epochs=1 eval_every=1 model=pcnbv_sp
 step evalB $PY -m nbv.eval data_dir="$OUT/dsB" limit=2 out_root="$OUT/evalB" run=r \
   checkpoints.pcnbv="$OUT/trainA/best.pt" checkpoints.pcnbv_sph="$OUT/trainB/best.pt" \
   plots=false progress=false
+step exportB $PY -m nbv.export eval_run="$OUT/evalB/r" out_dir="$OUT/exportB" progress=false
+MESH="$CODE/../shared/meshes/suzanne.obj"
+if [ -f "$MESH" ]; then
+  step planA $PY -m nbv.plan mesh="$MESH" method=ig n_views=4 save_captures=2 page=false \
+    out_dir="$OUT/planA"
+fi
