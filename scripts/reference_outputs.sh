@@ -5,7 +5,8 @@
 #   python scripts/compare_runs.py ckpt BEFORE/trainA/best.pt AFTER/trainA/best.pt   (last.pt, B)
 #   python scripts/compare_runs.py results BEFORE/evalA/r/results.json AFTER/evalA/r/results.json
 # A: the Blender dataset of 8 models, one epoch of PCNBV (fold 1: the 8 models are airplanes and
-#    cabinets), the evaluation of its test split (2 models a dataset).
+#    cabinets), the evaluation of its test split with the shipped weights (2 models a dataset;
+#    the new checkpoint chose its epoch on those models, so the evaluator would leave them out).
 # B: a ray-cast dataset of every category, one epoch of PCNBV-sph, both networks evaluated on 2
 #    unseen models; that evaluation exported in PC-NBV's layout (exportB).
 # planA: `nbv.plan` on a mesh of ../shared/meshes (ig, 4 views, 2 captures saved), when the folder
@@ -28,7 +29,7 @@ step dsA $PY -m nbv.dataset limit=8 out_dir="$OUT/dsA" progress=false hydra.run.
 step trainA $PY -m train dataset="$OUT/dsA" fold=1 epochs=1 eval_every=1 out_dir="$OUT/trainA" \
   progress=false
 step evalA $PY -m nbv.eval data_dir="$OUT/dsA" dataset=test limit=2 out_root="$OUT/evalA" run=r \
-  checkpoints.pcnbv="$OUT/trainA/best.pt" checkpoints.pcnbv_sph="$OUT/missing.pt" plots=false \
+  checkpoints.pcnbv="$OUT/missing.pt" checkpoints.pcnbv_sph="$OUT/missing.pt" plots=false \
   progress=false
 step dsB $PY -m nbv.dataset renderer.backend=raycast \
   'synthetic.counts={train: 1, valid: 1, test: 0, unseen: 1}' out_dir="$OUT/dsB" progress=false \
