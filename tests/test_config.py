@@ -36,8 +36,8 @@ from nbv.planning.settings import PlannerSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
-#: Primary config -> the settings_from_config of its entry point (importing it registers the
-#: schema in hydra's ConfigStore).
+#: Primary config -> the config module of its entry point (importing it registers the schema in
+#: hydra's ConfigStore; its ``ENTRY`` builds the settings).
 ENTRY_POINTS = {
     "dataset": nbv.dataset.config,
     "train": train.config,
@@ -67,7 +67,8 @@ def composed(name: str, overrides: list[str] = (), hydra: bool = False):
 def build(name: str, cfg) -> list:
     """Every settings object the entry point builds from ``cfg``."""
     module = ENTRY_POINTS[name]
-    settings = module.settings_from_config(cfg)
+    entry = getattr(module, "ENTRY", None)
+    settings = entry.build(cfg) if entry else module.settings_from_config(cfg)
     if name == "dataset":
         return [settings, module.sample_settings_from_config(cfg)]
     if name == "train":

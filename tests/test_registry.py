@@ -106,3 +106,27 @@ def test_unknown_names_are_refused_with_the_registered_ones():
         method("spread_out")
     with pytest.raises(ValueError, match="allowed: random_cloud, permuted_state, random_hull"):
         check_methods("noise")
+
+
+def test_a_network_method_runs_its_checkpoint_else_the_shipped_weights(tmp_path, caplog):
+    from nbv.assets.weights import shipped_weights
+    from nbv.policies.registry import METHODS
+
+    pcnbv = METHODS["pcnbv"]
+    mine = tmp_path / "best.pt"
+    mine.write_bytes(b"")
+    assert pcnbv.weights(mine) == mine
+    with caplog.at_level("INFO", logger="nbv.policies.registry"):
+        assert pcnbv.weights(tmp_path / "missing.pt") == shipped_weights("pcnbv")
+    assert "using the shipped weights" in caplog.text and "missing.pt" in caplog.text
+    assert pcnbv.weights(None) == shipped_weights("pcnbv")
+    with pytest.raises(ValueError, match="runs no network"):
+        METHODS["ig"].weights(None)
+
+
+def test_load_gives_the_policy_of_the_method_input():
+    from nbv.policies.registry import METHODS
+
+    for name in ("pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map"):
+        m = METHODS[name]
+        assert m.load(m.weights(None), 33).input == m.network_input

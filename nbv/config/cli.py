@@ -11,6 +11,9 @@ Two moments refuse a run:
 
 Either way the last line on stderr is ``<prog>: <what is wrong>`` and the status is 2.
 ``HYDRA_FULL_ERROR=1`` in the environment keeps hydra's own report of composition errors.
+
+:func:`command` builds every entry point this way, so that a ``__main__`` module holds only its
+own work: ``main = command(PROG, "eval", start, finish)`` and ``if __name__ == "__main__": main()``.
 """
 
 from __future__ import annotations
@@ -21,8 +24,9 @@ import shutil
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import NoReturn
+from typing import Any, NoReturn, TypeVar
 
+import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.errors import HydraException
 from omegaconf.errors import OmegaConfBaseException
@@ -30,6 +34,11 @@ from omegaconf.errors import OmegaConfBaseException
 from nbv.config.schema import describe
 
 log = logging.getLogger(__name__)
+
+#: The hydra configs of every entry point (``conf/`` at the repository's root).
+CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
+
+T = TypeVar("T")
 
 #: What hydra writes into ``<run folder>/<hydra.output_subdir>`` before the task starts.
 HYDRA_FILES = ("config.yaml", "hydra.yaml", "overrides.yaml")
@@ -148,3 +157,43 @@ def refuse(prog: str, err: BaseException, scratch: Iterable[str] = ()) -> NoRetu
     if not remove_run_dir(scratch):
         _to_job_log(prog, message)
     fail(prog, message)
+
+
+def command(
+    prog: str,
+    config_name: str,
+    start: Callable[[Any], T],
+    finish: Callable[[T], object] | None = None,
+    scratch: Iterable[str] = (),
+) -> Callable[[], None]:
+    """An entry point: hydra composes ``conf/<config_name>.yaml``, ``start(cfg)`` checks the
+    settings and the input (and may do the work), ``finish(start's result)`` does the rest.
+
+    A ``ValueError`` from ``start`` (a bad setting or input file; its message names it) refuses
+    the run with :func:`refuse`: one line, status 2, no run folder left. A config hydra cannot
+    compose is refused alike (:func:`entry_point`). ``finish`` runs after that point: its errors
+    are the program's own and keep their traceback.
+
+    Args:
+        prog: the command's name (``nbv.eval``), the prefix of a refusal's line.
+        config_name: the primary config under ``conf/``.
+        start: composed config -> what ``finish`` needs.
+        finish: the work after the checks, or None.
+        scratch: files ``start`` writes that do not count as work (:func:`refuse`).
+
+    Returns:
+        The program: call it from ``if __name__ == "__main__":``.
+    """
+    scratch = tuple(scratch)
+
+    def task(cfg: Any) -> None:
+        try:
+            state = start(cfg)
+        except ValueError as err:
+            refuse(prog, err, scratch)
+        if finish is not None:
+            finish(state)
+
+    # The job's name comes from each config's hydra.job.name, not from this module.
+    main = hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")(task)
+    return lambda: entry_point(prog, main)

@@ -8,22 +8,27 @@ checks, the report and the plots read from :data:`METHODS`, so adding a method i
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from nbv.assets.weights import SHIPPED_SCORER
+from nbv.assets.weights import SHIPPED_SCORER, shipped_weights
 from nbv.geometry.camera import Intrinsics
 from nbv.planning.scorer import GainScorer, load_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
+from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.volumetric import InformationGainPolicy
+
+log = logging.getLogger(__name__)
 
 #: Disturbance checks (the paper's Fig. 18, and Gaussian position noise on the cloud a method
 #: sees): what each one replaces of a policy's input.
@@ -97,6 +102,42 @@ class Method:
     style: tuple[str, str] = ("#8c564b", "-")
     learned_score: bool = False
     paper_times: Mapping[str, float] = field(default_factory=dict)
+
+    def weights(self, checkpoint: str | Path | None) -> Path:
+        """The weights this network method runs: ``checkpoint`` when it exists, else the weights
+        the package ships for it (logged: which one, and why).
+
+        Raises:
+            ValueError: not a network method, or no checkpoint there and none shipped.
+        """
+        if self.network_input is None:
+            raise ValueError(f"method {self.name!r} runs no network")
+        if checkpoint is not None and Path(checkpoint).exists():
+            return Path(checkpoint)
+        shipped = shipped_weights(self.name)
+        if shipped is None:
+            raise ValueError(
+                f"method={self.name} needs trained weights: checkpoint=<best.pt> (none at "
+                f"{checkpoint})"
+            )
+        log.info("%s: no checkpoint at %s; using the shipped weights %s", self.name, checkpoint,
+                 shipped)  # fmt: skip
+        return shipped
+
+    def load(self, path: str | Path, n_views: int) -> NetworkPolicy | ConditionedPolicy:
+        """The network policy of the checkpoint at ``path`` (no fallback: see :meth:`weights`).
+
+        Args:
+            path: a checkpoint of ``python -m train`` (points, signature) or of
+                ``python -m train.conditioned`` (directions).
+            n_views: the viewspace's size (a PCNBV network has one output per view).
+
+        Raises:
+            nbv.models.checkpoints.CheckpointError: the file is not a usable checkpoint.
+        """
+        if self.network_input == "directions":
+            return ConditionedPolicy.from_checkpoint(path)
+        return NetworkPolicy.from_checkpoint(path, n_views=n_views)
 
 
 def _hull_policy(

@@ -1,0 +1,323 @@
+"""One declaration per setting: the frozen settings dataclass is the only place a key is written.
+
+A settings dataclass, nested like its YAML file, names each key, its type, its default and (with
+:func:`setting`) its allowed range. From it come
+
+- :func:`schema`: the hydra structured config (a plain dataclass with the same keys, types that
+  OmegaConf holds, and the same defaults), registered for the YAML's defaults list, so that hydra
+  refuses an unknown key or a value of the wrong type while it composes;
+- :func:`build`: the settings object made from a composed config, every range checked, the
+  message of a bad value naming its key path (``hull.samples=0: must be an integer >= 1``);
+- :func:`check_ranges`: the same range checks, for ``__post_init__`` (a settings object made in
+  code is checked as one made from a config).
+
+A YAML file therefore only overrides a default (and says why), or interpolates a shared group
+(``${protocol.eps}``). Checks that span several fields stay in the class's ``__post_init__``.
+
+Field metadata understood here (set it with :func:`setting`):
+
+- ``check`` / ``allowed``: a predicate on the value, and the words for what it must be;
+- ``key``: the YAML key when it differs from the field's name;
+- ``config`` / ``convert``: the type the YAML holds when the field's own type is not one
+  OmegaConf can hold (e.g. a camera ``{width, height, focal}`` for an ``Intrinsics``), and the
+  function that turns the YAML value into the field's value;
+- ``config_default``: that YAML value's default, when the field's default cannot be written back.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import types
+import typing
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from omegaconf import MISSING
+
+from nbv.config.schema import ConfigError, register, validated
+
+#: Field metadata keys (see the module docstring).
+_META = ("check", "allowed", "key", "config", "convert", "config_default")
+
+
+def setting(
+    default: Any = dataclasses.MISSING,
+    *,
+    factory: Callable[[], Any] | None = None,
+    check: Callable[[Any], bool] | None = None,
+    allowed: str | None = None,
+    key: str | None = None,
+    config: Any = None,
+    convert: Callable[[Any], Any] | None = None,
+    config_default: Any = dataclasses.MISSING,
+) -> Any:
+    """A settings field with its range and, where needed, its YAML form.
+
+    Args:
+        default: the default value (omit for a required key).
+        factory: a default factory instead of ``default`` (for mutable or nested defaults).
+        check: True for an allowed value (null is passed too when the type allows it).
+        allowed: what ``check`` allows, in words (``"an integer >= 1"``).
+        key: the YAML key, when it is not the field's name.
+        config: the type the YAML value has, when the field's type is not one OmegaConf holds.
+        convert: YAML value -> field value (with ``config``).
+        config_default: the YAML value's default (with ``config``), when the field has one.
+    """
+    if (check is None) != (allowed is None):
+        raise TypeError("setting(): give check and allowed together")
+    metadata = {
+        name: value
+        for name, value in (
+            ("check", check),
+            ("allowed", allowed),
+            ("key", key),
+            ("config", config),
+            ("convert", convert),
+        )
+        if value is not None
+    }
+    if config_default is not dataclasses.MISSING:
+        metadata["config_default"] = config_default
+    if factory is not None:
+        return dataclasses.field(default_factory=factory, metadata=metadata)
+    return dataclasses.field(default=default, metadata=metadata)
+
+
+def _fields(settings: type) -> list[dataclasses.Field]:
+    """The fields a config sets: those made by ``__init__``."""
+    return [f for f in dataclasses.fields(settings) if f.init]
+
+
+def key_of(f: dataclasses.Field) -> str:
+    """The YAML key of a settings field."""
+    return f.metadata.get("key", f.name)
+
+
+def _union_args(kind: Any) -> tuple[Any, ...] | None:
+    if typing.get_origin(kind) in (typing.Union, types.UnionType):
+        return typing.get_args(kind)
+    return None
+
+
+def _is_settings(kind: Any) -> bool:
+    return isinstance(kind, type) and dataclasses.is_dataclass(kind)
+
+
+def _config_type(kind: Any) -> Any:
+    """The type OmegaConf holds for a settings field's type.
+
+    Path -> str, tuples -> lists, nested settings -> their schema; a union that OmegaConf does
+    not hold (other than ``X | None``) -> Any.
+    """
+    args = _union_args(kind)
+    if args is not None:
+        rest = [a for a in args if a is not type(None)]
+        if len(rest) == 1:
+            inner = _config_type(rest[0])
+            return Any if inner is Any else inner | None
+        return Any
+    if kind is Path:
+        return str
+    if _is_settings(kind):
+        return schema(kind)
+    origin = typing.get_origin(kind)
+    if origin is tuple:
+        items = [a for a in typing.get_args(kind) if a is not Ellipsis]
+        item = items[0] if items and all(a == items[0] for a in items) else Any
+        return list[_config_type(item)]
+    if origin is list:
+        return list[_config_type(typing.get_args(kind)[0])]
+    if origin is dict:
+        k, v = typing.get_args(kind)
+        return dict[k, _config_type(v)]
+    return kind
+
+
+def plain(value: Any) -> Any:
+    """A settings value as the YAML would hold it (paths as strings, tuples as lists, settings
+    objects as dicts keyed like their YAML)."""
+    if isinstance(value, Path):
+        return str(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {key_of(f): plain(getattr(value, f.name)) for f in _fields(type(value))}
+    if isinstance(value, tuple | list):
+        return [plain(v) for v in value]
+    if isinstance(value, dict):
+        return {k: plain(v) for k, v in value.items()}
+    return value
+
+
+def _default_of(f: dataclasses.Field) -> Any:
+    """The field's default as the YAML holds it, or MISSING."""
+    if "config_default" in f.metadata:
+        return f.metadata["config_default"]
+    if f.default is not dataclasses.MISSING:
+        value = f.default
+    elif f.default_factory is not dataclasses.MISSING:
+        value = f.default_factory()
+    else:
+        return MISSING
+    if "config" in f.metadata:
+        return MISSING  # a field with its own YAML form names that form's default
+    return plain(value)
+
+
+def _schema_field(f: dataclasses.Field, kind: Any) -> tuple[str, Any, Any]:
+    ctype = f.metadata.get("config") or _config_type(kind)
+    default = _default_of(f)
+    if _is_settings(ctype) and isinstance(default, dict):
+        return key_of(f), ctype, dataclasses.field(default_factory=lambda: ctype(**default))
+    if isinstance(default, dict | list):
+        return key_of(f), ctype, dataclasses.field(default_factory=lambda: default)
+    return key_of(f), ctype, dataclasses.field(default=default)
+
+
+@functools.cache
+def schema(settings: type, extra: tuple[tuple[str, type], ...] = ()) -> type:
+    """The structured-config dataclass of a settings dataclass (cached: one class per settings).
+
+    Every ``__init__`` field of ``settings`` becomes a key of the same name (or its ``key``),
+    with the type OmegaConf holds and the same default (a required field is MISSING).
+
+    Args:
+        settings: the frozen settings dataclass.
+        extra: more keys ``(name, schema)``, for the shared groups the YAML composes and
+            interpolates but the settings do not hold (``paths``, ``protocol``).
+    """
+    hints = typing.get_type_hints(settings)
+    fields = [_schema_field(f, hints[f.name]) for f in _fields(settings)]
+    fields += [(name, kind, dataclasses.field(default_factory=kind)) for name, kind in extra]
+    return dataclasses.make_dataclass(f"{settings.__name__}Config", fields)
+
+
+@dataclass(frozen=True)
+class Entry:
+    """An entry point's settings: its settings class and the shared groups its YAML composes.
+
+    Made once in the entry point's config module, it registers the derived schema in hydra's
+    ConfigStore as ``schema_name`` (the first entry of the YAML's defaults list), and
+    :meth:`build` turns a composed config into the settings object.
+
+    Attributes:
+        schema_name: the ConfigStore name (``export_schema``).
+        settings: the frozen settings dataclass, nested like the YAML.
+        extra: ``(key, schema)`` of the shared groups (``paths``, ``protocol``, ``camera``) the
+            YAML composes and interpolates but the settings do not hold.
+    """
+
+    schema_name: str
+    settings: type
+    extra: tuple[tuple[str, type], ...] = ()
+
+    def __post_init__(self) -> None:
+        register(self.schema_name, self.schema)
+
+    @property
+    def schema(self) -> type:
+        """The structured-config dataclass hydra checks the YAML against."""
+        return schema(self.settings, self.extra)
+
+    def build(self, cfg: Any) -> Any:
+        """The settings of a composed config (:func:`build`)."""
+        return build(self.settings, cfg, dict(self.extra))
+
+
+def _coerce(kind: Any, value: Any, key: str) -> Any:
+    """A YAML value as the field's type wants it: str -> Path, list -> tuple, dict -> settings."""
+    if value is None:
+        return None
+    args = _union_args(kind)
+    if args is not None:
+        rest = [a for a in args if a is not type(None)]
+        return _coerce(rest[0], value, key) if len(rest) == 1 else _tupled(value)
+    if kind is Path:
+        return Path(value)
+    if _is_settings(kind):
+        return _construct(kind, value, f"{key}.")
+    origin = typing.get_origin(kind)
+    if origin is tuple:
+        items = [a for a in typing.get_args(kind) if a is not Ellipsis]
+        return tuple(_coerce(items[0] if items else Any, v, key) for v in value)
+    if origin is dict:
+        inner = typing.get_args(kind)[1]
+        return {k: _coerce(inner, v, f"{key}.{k}") for k, v in value.items()}
+    return value
+
+
+def _tupled(value: Any) -> Any:
+    return tuple(_tupled(v) for v in value) if isinstance(value, list) else value
+
+
+def _prefixed(err: ValueError, settings: type, prefix: str) -> ConfigError:
+    """The error of a nested settings object, its key given the path of the group it is in."""
+    message = str(err)
+    if prefix and any(
+        message.startswith(f"{key_of(f)}=") or message.startswith(f"{key_of(f)}:")
+        for f in _fields(settings)
+    ):
+        message = prefix + message
+    return ConfigError(message)
+
+
+def _construct(settings: type, values: Mapping[str, Any], prefix: str = "") -> Any:
+    hints = typing.get_type_hints(settings)
+    kwargs = {}
+    for f in _fields(settings):
+        key = key_of(f)
+        value = values[key]
+        if "convert" in f.metadata:
+            try:
+                value = f.metadata["convert"](value)
+            except ValueError as err:
+                raise ConfigError(f"{prefix}{key}: {err}") from None
+        else:
+            value = _coerce(hints[f.name], value, prefix + key)
+        _check(f, value, prefix)
+        kwargs[f.name] = value
+    try:
+        return settings(**kwargs)
+    except ValueError as err:
+        raise _prefixed(err, settings, prefix) from None
+
+
+def _check(f: dataclasses.Field, value: Any, prefix: str = "") -> None:
+    check = f.metadata.get("check")
+    if check is not None and not check(value):
+        shown = list(value) if isinstance(value, tuple) else value
+        if isinstance(shown, Path):
+            shown = str(shown)
+        raise ConfigError(f"{prefix}{key_of(f)}={shown!r}: must be {f.metadata['allowed']}")
+
+
+def check_ranges(obj: Any) -> None:
+    """Check each field of a settings object against its ``check`` (call in ``__post_init__``).
+
+    Raises:
+        ConfigError: ``<key>=<value>: must be <allowed>`` for the first field out of range.
+    """
+    for f in _fields(type(obj)):
+        _check(f, getattr(obj, f.name))
+
+
+def build(settings: type, cfg: Any, extra: Mapping[str, type] | None = None) -> Any:
+    """The settings object of a composed config (or a plain dict), every key checked.
+
+    Args:
+        settings: the frozen settings dataclass.
+        cfg: the composed hydra config; its ``hydra`` node and the ``extra`` groups are ignored.
+        extra: the shared groups the config holds beside the settings' keys (as :func:`schema`).
+
+    Raises:
+        ConfigError: an unknown key, a value of the wrong type, out of range or not fitting
+            another (the message names the key path).
+    """
+    values = validated(schema(settings, tuple((extra or {}).items())), cfg)
+    return _construct(settings, values)
+
+
+def as_config(obj: Any) -> dict:
+    """A settings object as the dict its YAML would hold (every key, nested)."""
+    return plain(obj)

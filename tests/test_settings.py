@@ -1,0 +1,107 @@
+"""The settings machinery: one frozen dataclass gives the hydra schema, the builder and the
+range checks (nbv.config.settings)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+from omegaconf import OmegaConf
+
+from nbv.config.schema import ConfigError
+from nbv.config.settings import as_config, build, check_ranges, schema, setting
+
+
+@dataclass(frozen=True)
+class Inner:
+    samples: int = setting(8, check=lambda v: v >= 1, allowed="an integer >= 1")
+    weights: tuple[float, ...] = (1.0, 2.0)
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
+        if len(self.weights) > self.samples:
+            raise ConfigError(f"weights={list(self.weights)}: more than samples={self.samples}")
+
+
+@dataclass(frozen=True)
+class Camera:
+    width: int
+    focal: float
+
+
+@dataclass(frozen=True)
+class Outer:
+    out_dir: Path
+    n_views: int = setting(10, check=lambda v: v >= 2, allowed="an integer >= 2")
+    limit: int | None = setting(None, check=lambda v: v is None or v >= 1, allowed="null or >= 1")
+    mesh: Path | None = None
+    center: tuple[float, float, float] | None = None
+    inner: Inner = field(default_factory=Inner)
+    named: Inner = setting(factory=lambda: Inner(samples=3), key="other")
+    camera: Camera = setting(
+        factory=lambda: Camera(640, 500.0),
+        config=dict[str, float],
+        config_default={"width": 640, "focal": 500.0},
+        convert=lambda d: Camera(int(d["width"]), float(d["focal"])),
+    )
+    per_ring: int | tuple[int, ...] = 8
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
+
+
+def test_schema_has_the_settings_defaults_in_yaml_form():
+    node = OmegaConf.structured(schema(Outer))
+    assert OmegaConf.to_container(node, throw_on_missing=False)["n_views"] == 10
+    assert OmegaConf.is_missing(node, "out_dir")
+    assert node.inner.samples == 8 and list(node.inner.weights) == [1.0, 2.0]
+    assert node.other.samples == 3
+    assert node.camera == {"width": 640, "focal": 500.0}
+    assert node.per_ring == 8
+
+
+def test_build_converts_types_and_nests():
+    s = build(Outer, {"out_dir": "runs/a", "center": [0, 1, 2], "inner": {"weights": [3.0]},
+                      "per_ring": [4, 6], "camera": {"width": 320, "focal": 200.0}})  # fmt: skip
+    assert s == Outer(
+        out_dir=Path("runs/a"), center=(0.0, 1.0, 2.0), inner=Inner(weights=(3.0,)),
+        per_ring=(4, 6), camera=Camera(320, 200.0),
+    )  # fmt: skip
+    assert isinstance(s.out_dir, Path) and s.mesh is None
+    assert as_config(s)["other"] == {"samples": 3, "weights": [1.0, 2.0]}
+
+
+@pytest.mark.parametrize(
+    ("given", "message"),
+    [
+        ({"n_views": 1}, "n_views=1: must be an integer >= 2"),
+        ({"limit": 0}, "limit=0: must be null or >= 1"),
+        ({"inner": {"samples": 0}}, "inner.samples=0: must be an integer >= 1"),
+        ({"other": {"samples": 0}}, "other.samples=0: must be an integer >= 1"),
+        ({"inner": {"samples": 1}}, "inner.weights=[1.0, 2.0]: more than samples=1"),
+        ({"n_views": "many"}, "n_views='many': must be an integer"),
+        ({"nope": 1}, "nope: unknown key"),
+    ],
+)
+def test_a_bad_value_names_its_key_path(given, message):
+    with pytest.raises(ConfigError) as err:
+        build(Outer, {"out_dir": "x", **given})
+    assert str(err.value).startswith(message)
+
+
+def test_missing_required_key_is_named():
+    with pytest.raises(ConfigError, match="out_dir: no value"):
+        build(Outer, {})
+
+
+def test_settings_made_in_code_are_checked_alike():
+    with pytest.raises(ConfigError, match=r"^n_views=1: must be an integer >= 2$"):
+        Outer(out_dir=Path("x"), n_views=1)
+    with pytest.raises(ConfigError, match=r"^samples=0: must be an integer >= 1$"):
+        Inner(samples=0)
+
+
+def test_round_trip_through_yaml_form():
+    s = Outer(out_dir=Path("o"), center=(1.0, 2.0, 3.0), limit=4)
+    assert build(Outer, as_config(s)) == s
