@@ -130,3 +130,16 @@ def test_load_gives_the_policy_of_the_method_input():
     for name in ("pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map"):
         m = METHODS[name]
         assert m.load(m.weights(None), 33).input == m.network_input
+
+
+def test_every_policy_has_the_attributes_the_policy_protocol_declares():
+    from nbv.policies.episode import Policy
+
+    declared = Policy.__annotations__
+    assert set(declared) == {"timings", "notes", "counts", "last_gains"}
+    for name, m in METHODS.items():
+        policy = m.build(_context(), np.random.default_rng(0))
+        for attribute in declared:
+            value = getattr(policy, attribute)  # no getattr default: every policy has it
+            assert isinstance(value, dict | list), (name, attribute)
+        assert not policy.last_gains and all(v == 0 for v in policy.counts.values()), name

@@ -22,6 +22,8 @@ class RandomPolicy:
     rng: np.random.Generator
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=dict)
+    last_gains: list[float] = field(default_factory=list)
 
     def view_scores(self, state: EpisodeState) -> np.ndarray:
         """(V,) uniform random scores from the generator: the ranking of no information."""
@@ -42,6 +44,8 @@ class SpreadPolicy:
 
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=dict)
+    last_gains: list[float] = field(default_factory=list)
 
     @staticmethod
     def _directions(state: EpisodeState) -> np.ndarray:
@@ -64,6 +68,8 @@ class OraclePolicy:
     score: str = "coverage"
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=dict)
+    last_gains: list[float] = field(default_factory=list)
 
     def __call__(self, state: EpisodeState) -> int:
         t0 = time.perf_counter()

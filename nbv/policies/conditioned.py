@@ -40,6 +40,8 @@ class ConditionedPolicy:
     n_points: int = 256
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=dict)
+    last_gains: list[float] = field(default_factory=list)
     selected_on: tuple[str, ...] = ()
     input: str = "directions"
     mapper: InformationGainPolicy | None = None

@@ -11,8 +11,8 @@ AUC (PC-NBV's definition) of a 10-view coverage curve: ``(cov_1 + ... + cov_9 + 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol
 
 import numpy as np
 
@@ -49,8 +49,29 @@ class EpisodeState:
         return np.concatenate([view.view_points(v) for v in self.order])
 
 
-#: A policy: state -> the next view (an unvisited index), or a list of views to take in order.
-Policy = Callable[[EpisodeState], int | list[int]]
+class Policy(Protocol):
+    """A view-selection method for one episode: state -> the next view (an unvisited index), or
+    a list of views to take in order.
+
+    Every policy has these attributes; the evaluator and the planner read them after each
+    decision.
+
+    Attributes:
+        timings: stage -> seconds of each decision (:func:`record_time`).
+        notes: what the policy had to work around (an empty cloud, a flat hull), reported with
+            the episode.
+        counts: a planner's picks (``planned``) and those of zero predicted gain
+            (``zero_gain``); empty for a method that predicts no gain.
+        last_gains: a planner's predicted gain of each view of its last decision (what they
+            count: its ``gain_unit``); empty for a method that predicts none.
+    """
+
+    timings: dict[str, list[float]]
+    notes: list[str]
+    counts: dict[str, int]
+    last_gains: list[float]
+
+    def __call__(self, state: EpisodeState) -> int | list[int]: ...
 
 
 @dataclass

@@ -35,6 +35,11 @@ class HullThenGainPolicy:
     def counts(self) -> dict[str, int]:
         return {k: self.hull.counts[k] + self.gain.counts[k] for k in ("planned", "zero_gain")}
 
+    @property
+    def last_gains(self) -> list[float]:
+        """None predicted: its picks mix two planners' units."""
+        return []
+
     def __call__(self, state: EpisodeState) -> int | list[int]:
         if not self.planned:
             self.planned = True

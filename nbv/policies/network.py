@@ -36,6 +36,8 @@ class NetworkPolicy:
     precision: str = "auto"
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=dict)
+    last_gains: list[float] = field(default_factory=list)
     selected_on: tuple[str, ...] = ()
 
     @classmethod

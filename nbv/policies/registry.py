@@ -12,7 +12,6 @@ import logging
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -22,6 +21,7 @@ from nbv.planning.scorer import GainScorer, load_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned import ConditionedPolicy
+from nbv.policies.episode import Policy
 from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
@@ -61,9 +61,6 @@ class MethodContext:
     volumetric: VolumetricSettings = field(default_factory=VolumetricSettings)
     traced: dict = field(default_factory=dict, compare=False, repr=False)
     scorer: GainScorer | None = field(default=None, compare=False, repr=False)
-
-
-Policy = Callable[[Any], "int | list[int]"]
 
 
 @dataclass(frozen=True)
