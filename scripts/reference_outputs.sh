@@ -5,8 +5,9 @@
 #   python scripts/compare_runs.py ckpt BEFORE/trainA/best.pt AFTER/trainA/best.pt   (last.pt, B)
 #   python scripts/compare_runs.py results BEFORE/evalA/r/results.json AFTER/evalA/r/results.json
 # A: the Blender dataset of 8 models, one epoch of PCNBV (fold 1: the 8 models are airplanes and
-#    cabinets), the evaluation of its test split with the shipped weights (2 models a dataset;
-#    the new checkpoint chose its epoch on those models, so the evaluator would leave them out).
+#    cabinets), the evaluation of its test split by every method without a network (2 models a
+#    dataset: the networks chose their checkpoints on models of these names, so the evaluator
+#    would leave them out).
 # B: a ray-cast dataset of every category, one epoch of PCNBV-sph, both networks evaluated on 2
 #    unseen models; that evaluation exported in PC-NBV's layout (exportB).
 # planA: `nbv.plan` on a mesh of ../shared/meshes (ig, 4 views, 2 captures saved), when the folder
@@ -29,8 +30,8 @@ step dsA $PY -m nbv.dataset limit=8 out_dir="$OUT/dsA" progress=false hydra.run.
 step trainA $PY -m train dataset="$OUT/dsA" fold=1 epochs=1 eval_every=1 out_dir="$OUT/trainA" \
   progress=false
 step evalA $PY -m nbv.eval data_dir="$OUT/dsA" dataset=test limit=2 out_root="$OUT/evalA" run=r \
-  checkpoints.pcnbv="$OUT/missing.pt" checkpoints.pcnbv_sph="$OUT/missing.pt" plots=false \
-  progress=false
+  'methods=[random,spread,oracle,hull_sco,hull_sco_sph,hull_sco_probes,hull_sco_replan,ig,hull_ig,ig_learned]' \
+  plots=false progress=false
 step dsB $PY -m nbv.dataset renderer.backend=raycast \
   'synthetic.counts={train: 1, valid: 1, test: 0, unseen: 1}' out_dir="$OUT/dsB" progress=false \
   hydra.run.dir="$OUT/hydra/dsB"
