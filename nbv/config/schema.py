@@ -23,9 +23,9 @@ from omegaconf.errors import (
     ValidationError,
 )
 
-
-class ConfigError(ValueError):
-    """A setting that cannot be used; the message names the key and what is allowed."""
+# Defined with the fields that raise it (the library's settings raise it too); the entry points
+# import it from here.
+from nbv.utils.fields import ConfigError
 
 
 def names(value: Any, key: str) -> tuple[str, ...]:

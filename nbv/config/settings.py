@@ -30,7 +30,7 @@ import dataclasses
 import functools
 import types
 import typing
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -38,62 +38,18 @@ from typing import Any
 from omegaconf import MISSING
 
 from nbv.config.schema import ConfigError, register, validated
+from nbv.utils.fields import check, check_ranges, fields_of, key_of, setting
 
-#: Field metadata keys (see the module docstring).
-_META = ("check", "allowed", "key", "config", "convert", "config_default")
-
-
-def setting(
-    default: Any = dataclasses.MISSING,
-    *,
-    factory: Callable[[], Any] | None = None,
-    check: Callable[[Any], bool] | None = None,
-    allowed: str | None = None,
-    key: str | None = None,
-    config: Any = None,
-    convert: Callable[[Any], Any] | None = None,
-    config_default: Any = dataclasses.MISSING,
-) -> Any:
-    """A settings field with its range and, where needed, its YAML form.
-
-    Args:
-        default: the default value (omit for a required key).
-        factory: a default factory instead of ``default`` (for mutable or nested defaults).
-        check: True for an allowed value (null is passed too when the type allows it).
-        allowed: what ``check`` allows, in words (``"an integer >= 1"``).
-        key: the YAML key, when it is not the field's name.
-        config: the type the YAML value has, when the field's type is not one OmegaConf holds.
-        convert: YAML value -> field value (with ``config``).
-        config_default: the YAML value's default (with ``config``), when the field has one.
-    """
-    if (check is None) != (allowed is None):
-        raise TypeError("setting(): give check and allowed together")
-    metadata = {
-        name: value
-        for name, value in (
-            ("check", check),
-            ("allowed", allowed),
-            ("key", key),
-            ("config", config),
-            ("convert", convert),
-        )
-        if value is not None
-    }
-    if config_default is not dataclasses.MISSING:
-        metadata["config_default"] = config_default
-    if factory is not None:
-        return dataclasses.field(default_factory=factory, metadata=metadata)
-    return dataclasses.field(default=default, metadata=metadata)
-
-
-def _fields(settings: type) -> list[dataclasses.Field]:
-    """The fields a config sets: those made by ``__init__``."""
-    return [f for f in dataclasses.fields(settings) if f.init]
-
-
-def key_of(f: dataclasses.Field) -> str:
-    """The YAML key of a settings field."""
-    return f.metadata.get("key", f.name)
+__all__ = [
+    "Entry",
+    "as_config",
+    "build",
+    "check_ranges",
+    "key_of",
+    "plain",
+    "schema",
+    "setting",
+]  # fmt: skip  (check_ranges, key_of, setting: from nbv.utils.fields, used with the rest)
 
 
 def _union_args(kind: Any) -> tuple[Any, ...] | None:
@@ -142,7 +98,7 @@ def plain(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {key_of(f): plain(getattr(value, f.name)) for f in _fields(type(value))}
+        return {key_of(f): plain(getattr(value, f.name)) for f in fields_of(type(value))}
     if isinstance(value, tuple | list):
         return [plain(v) for v in value]
     if isinstance(value, dict):
@@ -188,7 +144,7 @@ def schema(settings: type, extra: tuple[tuple[str, type], ...] = ()) -> type:
             interpolates but the settings do not hold (``paths``, ``protocol``).
     """
     hints = typing.get_type_hints(settings)
-    fields = [_schema_field(f, hints[f.name]) for f in _fields(settings)]
+    fields = [_schema_field(f, hints[f.name]) for f in fields_of(settings)]
     fields += [(name, kind, dataclasses.field(default_factory=kind)) for name, kind in extra]
     return dataclasses.make_dataclass(f"{settings.__name__}Config", fields)
 
@@ -256,7 +212,7 @@ def _prefixed(err: ValueError, settings: type, prefix: str) -> ConfigError:
     message = str(err)
     if prefix and any(
         message.startswith(f"{key_of(f)}=") or message.startswith(f"{key_of(f)}:")
-        for f in _fields(settings)
+        for f in fields_of(settings)
     ):
         message = prefix + message
     return ConfigError(message)
@@ -265,7 +221,7 @@ def _prefixed(err: ValueError, settings: type, prefix: str) -> ConfigError:
 def _construct(settings: type, values: Mapping[str, Any], prefix: str = "") -> Any:
     hints = typing.get_type_hints(settings)
     kwargs = {}
-    for f in _fields(settings):
+    for f in fields_of(settings):
         key = key_of(f)
         value = values[key]
         if "convert" in f.metadata:
@@ -275,31 +231,12 @@ def _construct(settings: type, values: Mapping[str, Any], prefix: str = "") -> A
                 raise ConfigError(f"{prefix}{key}: {err}") from None
         else:
             value = _coerce(hints[f.name], value, prefix + key)
-        _check(f, value, prefix)
+        check(f, value, prefix)
         kwargs[f.name] = value
     try:
         return settings(**kwargs)
     except ValueError as err:
         raise _prefixed(err, settings, prefix) from None
-
-
-def _check(f: dataclasses.Field, value: Any, prefix: str = "") -> None:
-    check = f.metadata.get("check")
-    if check is not None and not check(value):
-        shown = list(value) if isinstance(value, tuple) else value
-        if isinstance(shown, Path):
-            shown = str(shown)
-        raise ConfigError(f"{prefix}{key_of(f)}={shown!r}: must be {f.metadata['allowed']}")
-
-
-def check_ranges(obj: Any) -> None:
-    """Check each field of a settings object against its ``check`` (call in ``__post_init__``).
-
-    Raises:
-        ConfigError: ``<key>=<value>: must be <allowed>`` for the first field out of range.
-    """
-    for f in _fields(type(obj)):
-        _check(f, getattr(obj, f.name))
 
 
 def build(settings: type, cfg: Any, extra: Mapping[str, type] | None = None) -> Any:
