@@ -1,44 +1,27 @@
 """Aircraft and watercraft: airplane and vessel, long along z, nose or bow to +z.
 
-Each builder takes the model's ``numpy.random.Generator`` and returns its parts
-(``trimesh.Trimesh``, see :mod:`nbv.assets.synthetic.primitives`) in ShapeNet's frame: Y up, front
-+z. Units are roughly metres (airplanes and vessels: length 1); only proportions matter, since
-every model is normalised at the end (:func:`nbv.assets.synthetic.catalogue.make_model`).
+Builders as :mod:`nbv.assets.synthetic.primitives` describes them.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from nbv.assets.synthetic.primitives import (
-    Part,
-    _box,
-    _cone,
-    _corners,
-    _cyl,
-    _ellipsoid,
-    _frustum,
-    _hexa,
-    _mirror_x,
-    _rot,
-    _slab,
-    _span,
-    _symmetric,
-)
+import nbv.assets.synthetic.primitives as pr
 
 
-def _airplane(rng: np.random.Generator) -> list[Part]:
+def _airplane(rng: np.random.Generator) -> list[pr.Part]:
     u = rng.uniform
     kind = rng.choice(3, p=[0.5, 0.25, 0.25])  # airliner, fighter, light aircraft
     r = (u(0.04, 0.065), u(0.035, 0.05), u(0.04, 0.06))[kind]
     z_tail, z_nose = -0.5 + u(0.18, 0.26), 0.5 - u(0.15, 0.22)
-    parts = [_cyl(r, (0, 0, z_tail), (0, 0, z_nose), 24)]
+    parts = [pr.cyl(r, (0, 0, z_tail), (0, 0, z_nose), 24)]
     if kind == 1:
-        parts.append(_cone(r, (0, 0, z_nose), (0, -0.2 * r, 0.5), 24))
+        parts.append(pr.cone(r, (0, 0, z_nose), (0, -0.2 * r, 0.5), 24))
     else:
-        parts.append(_ellipsoid((0, 0, z_nose), (r, r, 0.5 - z_nose)))
+        parts.append(pr.ellipsoid((0, 0, z_nose), (r, r, 0.5 - z_nose)))
     tail_lift = r * u(0.2, 0.7)
-    parts.append(_frustum(r, r * u(0.25, 0.45), (0, 0, z_tail), (0, tail_lift, -0.5), 24))
+    parts.append(pr.frustum(r, r * u(0.25, 0.45), (0, 0, z_tail), (0, tail_lift, -0.5), 24))
 
     if kind == 0:
         b, cr, taper = u(0.38, 0.55), u(0.16, 0.24), u(0.25, 0.45)
@@ -51,7 +34,7 @@ def _airplane(rng: np.random.Generator) -> list[Part]:
         sweep, dihedral, y_w, zc = u(0, 5), u(1, 4), 0.9 * r, u(0.05, 0.15)
     tan_s, tan_d = np.tan(np.deg2rad(sweep)), np.tan(np.deg2rad(dihedral))
     th = 0.1 * min(cr, 0.25)
-    wing = _slab(
+    wing = pr.slab(
         (0, y_w, zc + cr / 2),
         cr,
         (b, y_w + b * tan_d, zc + cr / 2 - b * tan_s),
@@ -67,16 +50,16 @@ def _airplane(rng: np.random.Generator) -> list[Part]:
             x = f * b
             z_le = zc + cr / 2 - x * tan_s
             y = y_w + x * tan_d - re - 0.01
-            half.append(_cyl(re, (x, y, z_le - 0.5 * le), (x, y, z_le + 0.5 * le), 20))
-            half.append(_span((x - 0.004, y, z_le - 0.4 * le), (x + 0.004, y + re + 0.012, z_le)))
+            half.append(pr.cyl(re, (x, y, z_le - 0.5 * le), (x, y, z_le + 0.5 * le), 20))
+            half.append(pr.span((x - 0.004, y, z_le - 0.4 * le), (x + 0.004, y + re + 0.012, z_le)))
     elif kind == 2:
         if rng.random() < 0.6:  # wing struts
-            half.append(_cyl(0.006, (r * 0.8, -0.7 * r, zc), (0.45 * b, y_w, zc), 8))
-        parts.append(_cone(0.35 * r, (0, 0, 0.5), (0, 0, 0.5 + 0.5 * r), 12))
+            half.append(pr.cyl(0.006, (r * 0.8, -0.7 * r, zc), (0.45 * b, y_w, zc), 8))
+        parts.append(pr.cone(0.35 * r, (0, 0, 0.5), (0, 0, 0.5 + 0.5 * r), 12))
         blade = u(0.08, 0.12)
         for k in range(rng.choice([2, 3])):
-            rot = _rot("z", k * 2 * np.pi / 3 + u(0, 1))
-            parts.append(_box((0.014, blade, 0.006), (0, 0, 0.5 + 0.2 * r), rot))
+            rot = pr.rot("z", k * 2 * np.pi / 3 + u(0, 1))
+            parts.append(pr.box((0.014, blade, 0.006), (0, 0, 0.5 + 0.2 * r), rot))
             parts[-1].apply_translation(rot @ np.array([0, blade / 2, 0]))
 
     # Vertical fin(s); fighters may have two, canted.
@@ -87,7 +70,7 @@ def _airplane(rng: np.random.Generator) -> list[Part]:
     twin = kind == 1 and rng.random() < 0.5
     xf, cant = (0.8 * r, 0.35) if twin else (0.0, 0.0)
     y0f = tail_lift * 0.5 + 0.4 * r
-    fin = _slab(
+    fin = pr.slab(
         (xf, y0f, z_le_f),
         crf,
         (xf + hf * np.sin(cant), y0f + hf * np.cos(cant), z_le_f - hf * tan_f),
@@ -95,7 +78,7 @@ def _airplane(rng: np.random.Generator) -> list[Part]:
         (0.012, 0.008),
         thick_dir=(1, 0, 0),
     )
-    parts.extend([fin] + (_mirror_x([fin]) if twin else []))
+    parts.extend([fin] + (pr.mirror_x([fin]) if twin else []))
 
     # Horizontal tail, at the fuselage or on top of the fin (T-tail).
     t_tail = kind != 1 and not twin and rng.random() < 0.25
@@ -107,12 +90,12 @@ def _airplane(rng: np.random.Generator) -> list[Part]:
         y_t, z_le_t = tail_lift * 0.6, -0.5 + crt + u(0.0, 0.05)
     tan_t = np.tan(np.deg2rad(u(20, 40) if kind != 2 else u(0, 10)))
     half.append(
-        _slab((0, y_t, z_le_t), crt, (bt, y_t, z_le_t - bt * tan_t), crt * 0.5, (0.012, 0.008))
+        pr.slab((0, y_t, z_le_t), crt, (bt, y_t, z_le_t - bt * tan_t), crt * 0.5, (0.012, 0.008))
     )
-    return parts + _symmetric(half)
+    return parts + pr.symmetric(half)
 
 
-def _vessel(rng: np.random.Generator) -> list[Part]:
+def _vessel(rng: np.random.Generator) -> list[pr.Part]:
     u = rng.uniform
     kind = rng.choice(3, p=[0.45, 0.3, 0.25])  # ship, sailboat, speedboat
     beam = u(0.14, 0.24) if kind != 2 else u(0.22, 0.32)
@@ -120,7 +103,7 @@ def _vessel(rng: np.random.Generator) -> list[Part]:
     bow_len = u(0.18, 0.35)
     zb = 0.5 - bow_len
     bf = u(0.4, 0.8)
-    stern = _corners((-beam / 2, 0, -0.5), (beam / 2, hd, zb))
+    stern = pr.corners((-beam / 2, 0, -0.5), (beam / 2, hd, zb))
     stern[[0, 1, 4, 5], 0] *= bf
     stern[[0, 4], 2] += u(0.0, 0.05)
     bow = stern.copy()
@@ -130,7 +113,7 @@ def _vessel(rng: np.random.Generator) -> list[Part]:
     bow[[1, 5], 0] = np.array([-1, 1]) * 0.01 * beam
     bow[[1, 5], 2] = 0.5 - u(0.05, 0.2)
     bow[[1, 5], 1] = hd * u(0.0, 0.4)
-    parts = [_hexa(stern), _hexa(bow)]
+    parts = [pr.hexa(stern), pr.hexa(bow)]
 
     if kind == 0:
         zh = u(-0.3, 0.05)
@@ -138,33 +121,35 @@ def _vessel(rng: np.random.Generator) -> list[Part]:
         lz, bw = u(0.15, 0.35), beam * u(0.6, 0.85)
         for _ in range(rng.integers(1, 4)):
             th = u(0.04, 0.07)
-            parts.append(_span((-bw / 2, y, zh - lz / 2), (bw / 2, y + th, zh + lz / 2)))
+            parts.append(pr.span((-bw / 2, y, zh - lz / 2), (bw / 2, y + th, zh + lz / 2)))
             y += th
             lz *= u(0.6, 0.9)
             bw *= u(0.75, 0.95)
         if rng.random() < 0.7:
             for k in range(rng.integers(1, 3)):
                 zf = zh - 0.05 - 0.07 * k
-                parts.append(_cyl(u(0.015, 0.03), (0, hd, zf), (0, y + u(0.04, 0.1), zf), 20))
+                parts.append(pr.cyl(u(0.015, 0.03), (0, hd, zf), (0, y + u(0.04, 0.1), zf), 20))
         mast_top = y + u(0.1, 0.25)
-        parts.append(_cyl(0.005, (0, y, zh + 0.02), (0, mast_top, zh + 0.02), 8))
+        parts.append(pr.cyl(0.005, (0, y, zh + 0.02), (0, mast_top, zh + 0.02), 8))
         parts.append(
-            _span((-0.05, mast_top - 0.04, zh + 0.015), (0.05, mast_top - 0.03, zh + 0.025))
+            pr.span((-0.05, mast_top - 0.04, zh + 0.015), (0.05, mast_top - 0.03, zh + 0.025))
         )
         if rng.random() < 0.35:  # deck cargo
             for k in range(rng.integers(1, 4)):
                 z0 = zh + 0.2 + 0.07 * k
                 if z0 + 0.05 < zb + 0.05:
-                    parts.append(_span((-beam * 0.35, hd, z0), (beam * 0.35, hd + 0.04, z0 + 0.05)))
+                    parts.append(
+                        pr.span((-beam * 0.35, hd, z0), (beam * 0.35, hd + 0.04, z0 + 0.05))
+                    )
     elif kind == 1:
         zm = u(0.0, 0.2)
         top = hd + u(0.5, 0.9)
-        parts.append(_cyl(0.006, (0, hd, zm), (0, top, zm), 8))
+        parts.append(pr.cyl(0.006, (0, hd, zm), (0, top, zm), 8))
         boom_y = hd + u(0.04, 0.08)
         chord = u(0.25, 0.4)
-        parts.append(_cyl(0.005, (0, boom_y, zm), (0, boom_y, zm - chord), 8))
+        parts.append(pr.cyl(0.005, (0, boom_y, zm), (0, boom_y, zm - chord), 8))
         parts.append(
-            _slab(
+            pr.slab(
                 (0, boom_y + 0.01, zm - 0.008),
                 chord,
                 (0, top - 0.03, zm - 0.008),
@@ -176,7 +161,7 @@ def _vessel(rng: np.random.Generator) -> list[Part]:
         if rng.random() < 0.6:  # jib from the bow to the mast head
             z_bow = 0.45
             parts.append(
-                _slab(
+                pr.slab(
                     (0, hd + 0.02, z_bow),
                     z_bow - zm - 0.03,
                     (0, top - 0.05, zm + 0.03),
@@ -187,10 +172,10 @@ def _vessel(rng: np.random.Generator) -> list[Part]:
             )
         zc = zm - u(0.08, 0.15)
         lc = u(0.15, 0.25)
-        parts.append(_span((-beam * 0.3, hd, zc - lc), (beam * 0.3, hd + u(0.03, 0.05), zc)))
+        parts.append(pr.span((-beam * 0.3, hd, zc - lc), (beam * 0.3, hd + u(0.03, 0.05), zc)))
         if rng.random() < 0.6:  # keel fin
             parts.append(
-                _slab(
+                pr.slab(
                     (0, 0.01, zm + 0.05),
                     0.15,
                     (0, -u(0.1, 0.2), zm),
@@ -202,11 +187,11 @@ def _vessel(rng: np.random.Generator) -> list[Part]:
     else:
         zc, lc = u(-0.1, 0.1), u(0.2, 0.35)
         hc = u(0.05, 0.09)
-        cab = _corners((-beam * 0.4, hd, zc - lc / 2), (beam * 0.4, hd + hc, zc + lc / 2))
+        cab = pr.corners((-beam * 0.4, hd, zc - lc / 2), (beam * 0.4, hd + hc, zc + lc / 2))
         cab[[3, 7], 2] -= lc * u(0.4, 0.7)
         cab[[2, 3, 6, 7], 0] *= 0.85
-        parts.append(_hexa(cab))
+        parts.append(pr.hexa(cab))
         if rng.random() < 0.7:  # outboard motor
-            parts.append(_span((-0.03, hd * 0.2, -0.55), (0.03, hd + 0.06, -0.49)))
-            parts.append(_span((-0.01, -0.05, -0.535), (0.01, hd * 0.2, -0.505)))
+            parts.append(pr.span((-0.03, hd * 0.2, -0.55), (0.03, hd + 0.06, -0.49)))
+            parts.append(pr.span((-0.01, -0.05, -0.535), (0.01, hd * 0.2, -0.505)))
     return parts

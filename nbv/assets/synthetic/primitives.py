@@ -4,6 +4,13 @@ Boxes, cylinders, frusta, cones, ellipsoids, capsules, tori, annuli and "hexahed
 corners are moved, used for swept wings, hulls and slanted cabins), and the mirroring that makes
 parts symmetric about x = 0. Every helper returns a ``trimesh.Trimesh`` (a :data:`Part`) in the
 model's own units, before scaling; points and sizes are (x, y, z), angles in radians.
+
+The builders of each family of categories (:mod:`~nbv.assets.synthetic.craft`,
+:mod:`~nbv.assets.synthetic.vehicles`, :mod:`~nbv.assets.synthetic.seating`,
+:mod:`~nbv.assets.synthetic.furniture`, :mod:`~nbv.assets.synthetic.objects`) take the model's
+``numpy.random.Generator`` and return its parts in ShapeNet's frame: Y up, front +z. Units are
+roughly metres (airplanes and vessels: length 1); only proportions matter, since every model is
+normalised at the end (:func:`nbv.assets.synthetic.catalogue.make_model`).
 """
 
 from __future__ import annotations
@@ -22,7 +29,7 @@ _SIGNS.setflags(write=False)
 Part = trimesh.Trimesh
 
 
-def _rot(axis: str, angle: float) -> np.ndarray:
+def rot(axis: str, angle: float) -> np.ndarray:
     """3x3 rotation by ``angle`` radians about the x, y or z axis (right-handed)."""
     c, s = np.cos(angle), np.sin(angle)
     if axis == "x":
@@ -32,7 +39,7 @@ def _rot(axis: str, angle: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def _pose(rotation: np.ndarray | None, center: Sequence[float]) -> np.ndarray:
+def pose(rotation: np.ndarray | None, center: Sequence[float]) -> np.ndarray:
     m = np.eye(4)
     if rotation is not None:
         m[:3, :3] = rotation
@@ -45,25 +52,23 @@ def _z_to(direction: np.ndarray) -> np.ndarray:
     return trimesh.geometry.align_vectors([0.0, 0.0, 1.0], np.asarray(direction, float))[:3, :3]
 
 
-def _box(
-    size: Sequence[float], center: Sequence[float], rotation: np.ndarray | None = None
-) -> Part:
+def box(size: Sequence[float], center: Sequence[float], rotation: np.ndarray | None = None) -> Part:
     """Box of edge lengths ``size`` (x, y, z) centred at ``center``, optionally rotated."""
-    return trimesh.creation.box(extents=size, transform=_pose(rotation, center))
+    return trimesh.creation.box(extents=size, transform=pose(rotation, center))
 
 
-def _span(lo: Sequence[float], hi: Sequence[float]) -> Part:
+def span(lo: Sequence[float], hi: Sequence[float]) -> Part:
     """Axis-aligned box between corners ``lo`` and ``hi``."""
     lo, hi = np.asarray(lo, float), np.asarray(hi, float)
-    return _box(np.abs(hi - lo), (lo + hi) / 2)
+    return box(np.abs(hi - lo), (lo + hi) / 2)
 
 
-def _corners(lo: Sequence[float], hi: Sequence[float]) -> np.ndarray:
+def corners(lo: Sequence[float], hi: Sequence[float]) -> np.ndarray:
     """The 8 corners (8, 3) of an axis-aligned box in trimesh's box vertex order."""
     return np.where(_SIGNS, np.asarray(hi, float), np.asarray(lo, float))
 
 
-def _hexa(corners: np.ndarray) -> Part:
+def hexa(corners: np.ndarray) -> Part:
     """A box whose 8 corners, in trimesh's box order, have been moved; faces flip when the
     corners are mirrored so that normals keep pointing outwards."""
     c = np.asarray(corners, float)
@@ -73,7 +78,7 @@ def _hexa(corners: np.ndarray) -> Part:
     return trimesh.Trimesh(vertices=c, faces=np.array(faces), process=False)
 
 
-def _slab(
+def slab(
     root_le: Sequence[float],
     root_chord: float,
     tip_le: Sequence[float],
@@ -95,26 +100,26 @@ def _slab(
                 c[4 * ix + 2 * iy + iz] = (
                     np.asarray(le, float) - back * chord * chord_dir + side * th * thick_dir
                 )
-    return _hexa(c)
+    return hexa(c)
 
 
-def _cyl(radius: float, p0: Sequence[float], p1: Sequence[float], sections: int = 24) -> Part:
+def cyl(radius: float, p0: Sequence[float], p1: Sequence[float], sections: int = 24) -> Part:
     """Closed cylinder of ``radius`` from point ``p0`` to point ``p1``."""
     return trimesh.creation.cylinder(radius=radius, segment=[p0, p1], sections=sections)
 
 
-def _beam(
+def beam(
     p0: Sequence[float], p1: Sequence[float], width: float, depth: float | None = None
 ) -> Part:
     """Box of cross-section ``width`` x ``depth`` running from ``p0`` to ``p1``."""
     p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
     d = p1 - p0
-    return _box(
+    return box(
         (width, width if depth is None else depth, np.linalg.norm(d)), (p0 + p1) / 2, _z_to(d)
     )
 
 
-def _frustum(
+def frustum(
     r0: float, r1: float, p0: Sequence[float], p1: Sequence[float], sections: int = 32
 ) -> Part:
     """Closed truncated cone: radius ``r0`` at ``p0``, ``r1`` at ``p1``."""
@@ -128,16 +133,16 @@ def _frustum(
     return trimesh.Trimesh(vertices=v, faces=m.faces.copy(), process=False)
 
 
-def _cone(radius: float, base: Sequence[float], apex: Sequence[float], sections: int = 24) -> Part:
+def cone(radius: float, base: Sequence[float], apex: Sequence[float], sections: int = 24) -> Part:
     """Closed cone with a base of ``radius`` centred at ``base`` and its tip at ``apex``."""
     base, apex = np.asarray(base, float), np.asarray(apex, float)
     d = apex - base
     return trimesh.creation.cone(
-        radius=radius, height=np.linalg.norm(d), sections=sections, transform=_pose(_z_to(d), base)
+        radius=radius, height=np.linalg.norm(d), sections=sections, transform=pose(_z_to(d), base)
     )
 
 
-def _ellipsoid(center: Sequence[float], radii: Sequence[float], subdivisions: int = 2) -> Part:
+def ellipsoid(center: Sequence[float], radii: Sequence[float], subdivisions: int = 2) -> Part:
     """Ellipsoid with semi-axes ``radii`` (x, y, z) centred at ``center``."""
     m = trimesh.creation.icosphere(subdivisions=subdivisions)
     return trimesh.Trimesh(
@@ -147,7 +152,7 @@ def _ellipsoid(center: Sequence[float], radii: Sequence[float], subdivisions: in
     )
 
 
-def _capsule(radius: float, p0: Sequence[float], p1: Sequence[float]) -> Part:
+def capsule(radius: float, p0: Sequence[float], p1: Sequence[float]) -> Part:
     """Capsule of ``radius`` whose axis runs from ``p0`` to ``p1`` (the caps reach beyond)."""
     p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
     d = p1 - p0
@@ -155,31 +160,31 @@ def _capsule(radius: float, p0: Sequence[float], p1: Sequence[float]) -> Part:
         height=np.linalg.norm(d),
         radius=radius,
         count=[16, 16],
-        transform=_pose(_z_to(d), (p0 + p1) / 2),
+        transform=pose(_z_to(d), (p0 + p1) / 2),
     )
 
 
-def _torus(major: float, minor: float, center: Sequence[float], axis: Sequence[float]) -> Part:
+def torus(major: float, minor: float, center: Sequence[float], axis: Sequence[float]) -> Part:
     """Torus (a tyre) around ``axis`` through ``center``."""
     return trimesh.creation.torus(
         major_radius=major,
         minor_radius=minor,
         major_sections=32,
         minor_sections=10,
-        transform=_pose(_z_to(axis), center),
+        transform=pose(_z_to(axis), center),
     )
 
 
-def _annulus(
+def annulus(
     r_in: float, r_out: float, center: Sequence[float], axis: Sequence[float], height: float
 ) -> Part:
     """Flat ring (washer) of ``height`` around ``axis`` through ``center``."""
     return trimesh.creation.annulus(
-        r_min=r_in, r_max=r_out, height=height, sections=32, transform=_pose(_z_to(axis), center)
+        r_min=r_in, r_max=r_out, height=height, sections=32, transform=pose(_z_to(axis), center)
     )
 
 
-def _mirror_x(parts: list[Part]) -> list[Part]:
+def mirror_x(parts: list[Part]) -> list[Part]:
     """Copies of ``parts`` mirrored through the plane x = 0 (faces flipped by trimesh)."""
     out = []
     for p in parts:
@@ -189,6 +194,6 @@ def _mirror_x(parts: list[Part]) -> list[Part]:
     return out
 
 
-def _symmetric(parts: list[Part]) -> list[Part]:
+def symmetric(parts: list[Part]) -> list[Part]:
     """``parts`` and their mirror images through x = 0."""
-    return parts + _mirror_x(parts)
+    return parts + mirror_x(parts)
