@@ -43,7 +43,7 @@ def _entries() -> dict[str, Entry]:
     """schema name -> Entry, from every module of nbv/ and train/ that makes one."""
     found: dict[str, Entry] = {}
     for path in sorted([*ROOT.glob("nbv/**/*.py"), *ROOT.glob("train/*.py")]):
-        if "__main__" in path.name or not re.search(r"=\s*Entry\(", path.read_text()):
+        if "__main__" in path.name or not re.search(r"=\s*\w*Entry\(", path.read_text()):
             continue
         name = ".".join(path.relative_to(ROOT).with_suffix("").parts)
         module = importlib.import_module(name.removesuffix(".__init__"))
@@ -65,8 +65,16 @@ def _primary_configs() -> list[tuple[str, str]]:
 
 
 def _attribute_docs(kind: type) -> dict[str, str]:
-    """Field name -> its text in the ``Attributes:`` section of the class's docstring (a line
-    ``a, b: text`` documents both)."""
+    """Field name -> its text in the ``Attributes:`` sections of the class's docstring and its
+    bases' (a subclass's text wins; a line ``a, b: text`` documents both)."""
+    docs: dict[str, str] = {}
+    for base in reversed(kind.__mro__):
+        docs.update(_own_attribute_docs(base))
+    return docs
+
+
+def _own_attribute_docs(kind: type) -> dict[str, str]:
+    """:func:`_attribute_docs` of one class's own docstring."""
     docs: dict[str, str] = {}
     lines = (kind.__doc__ or "").splitlines()
     inside, current, indent = False, [], None

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import trimesh
 
-from nbv.dataset.config import Settings
 from nbv.dataset.generate import generate
+from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.dataset.samples import SampleSettings, write_samples
 from nbv.geometry.camera import Intrinsics
 
@@ -29,7 +29,9 @@ def write_meshes(folder: Path, bad: bool = True) -> Path:
     return folder
 
 
-def small_settings(tmp_path: Path, **overrides) -> Settings:
+def small_settings(tmp_path: Path, **overrides) -> GenerationSettings:
+    """The folder source of :func:`write_meshes`, ray cast with the small camera; ``overrides``
+    are fields of :class:`GenerationSettings`."""
     base = dict(
         out_dir=tmp_path / "out",
         source="folder",
@@ -37,11 +39,11 @@ def small_settings(tmp_path: Path, **overrides) -> Settings:
         intrinsics=SMALL_CAMERA,
         n_gt=1000,
         points_per_view=50,
-        backend="raycast",
+        renderer=Renderer(backend="raycast"),
         progress=False,
     )
     base.update(overrides)
-    return Settings(**base)
+    return GenerationSettings(**base)
 
 
 #: A very small PCNBV (the same sizes as conf/model/tiny.yaml).
@@ -54,13 +56,13 @@ TINY_NET = dict(
 def make_train_dataset(out: Path) -> Path:
     """One train and one valid synthetic model per training category, ray cast at 48 x 36, with
     coverage samples."""
-    settings = Settings(
+    settings = GenerationSettings(
         out_dir=out,
-        counts={"train": 1, "valid": 1, "test": 0, "unseen": 0},
+        synthetic=Synthetic(counts={"train": 1, "valid": 1, "test": 0, "unseen": 0}),
         intrinsics=Intrinsics.centred(48, 36, 36.0),
         n_gt=1024,
         points_per_view=64,
-        backend="raycast",
+        renderer=Renderer(backend="raycast"),
         progress=False,
     )
     summary = generate(settings)

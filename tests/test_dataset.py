@@ -14,15 +14,22 @@ import numpy as np
 import pytest
 import trimesh
 from datagen import SMALL_CAMERA, small_settings
+from hydra import compose, initialize_config_dir
 
 import nbv.dataset
-from nbv.dataset.config import ConfigError
-from nbv.dataset.generate import exit_status, generate, view_data
-from nbv.dataset.show import main as show_main
+from nbv.dataset import show
+from nbv.dataset.config import ENTRY
+from nbv.dataset.generate import exit_status, generate
+from nbv.dataset.generation import Renderer
+from nbv.dataset.samples import SampleSettings
+from nbv.dataset.schema import config_json
+from nbv.dataset.views import view_data
 from nbv.geometry.camera import backproject, look_at, viewspace_poses
 from nbv.geometry.viewspace import original_viewspace
 from nbv.render.job import RenderError
+from nbv.render.noise import DepthNoise
 from nbv.render.raycast import render_raycast
+from nbv.utils.fields import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -152,7 +159,8 @@ def test_nothing_produced_is_an_error_status(tmp_path):
     "bad, message",
     [
         (dict(shard=2, num_shards=2), "shard"),
-        (dict(backend="povray"), "renderer.backend"),
+        (dict(renderer=Renderer(backend="povray")), "renderer.backend='povray': must be one of"),
+        (dict(renderer=Renderer(chunk=0)), "renderer.chunk=0: must be an integer >= 1"),
         (dict(eps=0.0), "eps"),
         (dict(source="thingiverse"), "source='thingiverse': must be one of synthetic"),
     ],
@@ -162,12 +170,48 @@ def test_bad_settings_name_the_key(tmp_path, bad, message):
         small_settings(tmp_path, **bad)
 
 
+#: The data identity of ``python -m nbv.dataset seed=5``, as every shard made so far stores it (a
+#: change here would refuse to resume those datasets).
+IDENTITY = (
+    '{"backend":"blender","camera":{"cx":319.5,"cy":239.5,"fx":476.0,"fy":476.0,"height":480,'
+    '"width":640},"categories":null,"counts":{"test":1,"train":4,"unseen":2,"valid":1},'
+    '"eps":0.00707,"keep_depth":false,"n_gt":16384,"num_shards":1,"points_per_view":2048,'
+    '"root":null,"schema_version":1,"seed":5,"source":"synthetic","split_fractions":'
+    '{"test":0.0833,"valid":0.0833},"viewspaces":{"original":"original","permuted":"permuted"}}'
+)
+RESEARCH_NOISY = (
+    '{"backend":"raycast","camera":{"cx":319.5,"cy":239.5,"fx":476.0,"fy":476.0,"height":480,'
+    '"width":640},"categories":null,"counts":{"test":0,"train":16,"unseen":0,"valid":1},'
+    '"eps":0.00707,"keep_depth":false,"n_gt":16384,"noise":{"a":0.0012,"b":0.0019,"c":0.0001,'
+    '"dropout_start":70.0,"max_angle":85.0,"z0":0.4},"num_shards":1,"points_per_view":2048,'
+    '"root":null,"schema_version":1,"seed":0,"source":"synthetic","split_fractions":'
+    '{"test":0.0833,"valid":0.0833},"viewspaces":{"original":"original","permuted":"permuted"}}'
+)
+
+
+def test_the_command_keeps_the_data_identity_and_seeds_the_samples():
+    with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
+        settings = ENTRY.build(compose("dataset", ["seed=5"]))
+        research = ENTRY.build(compose("dataset_research", ["renderer.noise.enabled=true"]))
+        off = ENTRY.build(compose("dataset", ["samples.enabled=false"]))
+    assert config_json(settings.data_identity()) == IDENTITY
+    assert config_json(research.data_identity()) == RESEARCH_NOISY
+    assert research.noise == DepthNoise() and settings.noise is None
+    samples = settings.sample_settings()
+    assert type(samples) is SampleSettings and samples == SampleSettings(seed=5)
+    assert off.sample_settings() is None and research.sample_settings() is None
+
+
 def test_show_writes_a_picture(tmp_path):
     generate(small_settings(tmp_path, keep_depth=True))
     out = tmp_path / "pic.png"
     key = nbv.dataset.open(tmp_path / "out").keys()[0]
-    show_main([str(tmp_path / "out"), key, "--out", str(out)])
-    assert out.stat().st_size > 10_000
+    with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose("dataset_show", [f"dataset={tmp_path / 'out'}", f"key={key}", f"out={out}"])
+        show.finish(show.start(cfg))
+        assert out.stat().st_size > 10_000
+        with pytest.raises(ValueError, match="model 'nothing' not in"):
+            show.start(compose("dataset_show", [f"dataset={tmp_path / 'out'}", "key=nothing"]))
 
 
 def _cli(tmp_path: Path, out: Path, backend: str) -> list[str]:

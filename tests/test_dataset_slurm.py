@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from test_blender_binary import require_binary
 
-from nbv.dataset.config import Settings
 from nbv.dataset.generate import generate
+from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics
 
 pytestmark = [pytest.mark.slurm, pytest.mark.blender]
@@ -41,17 +41,16 @@ def local_run(out: Path, backend: str, blender: str | None = None) -> None:
     """The same two shards made in this process (``blender``: a binary, None = the bpy wheel)."""
     for shard in range(2):
         generate(
-            Settings(
+            GenerationSettings(
                 out_dir=out,
-                counts={"train": 1, "valid": 0, "test": 0, "unseen": 0},
+                synthetic=Synthetic(counts={"train": 1, "valid": 0, "test": 0, "unseen": 0}),
                 limit=1,
                 shard=shard,
                 num_shards=2,
                 intrinsics=Intrinsics.centred(40, 30, 30.0),
                 n_gt=1024,
                 points_per_view=32,
-                backend=backend,
-                blender=blender,
+                renderer=Renderer(backend=backend, blender=blender),
                 progress=False,
             )
         )

@@ -20,8 +20,8 @@ from nbv.config.schema import ConfigError
 from nbv.geometry.camera import opencv_to_blender
 from nbv.geometry.viewspace import original_viewspace
 from nbv.geometry.viewspace_generators import rings
-from nbv.plan.config import PLANNABLE, PlanSettings, settings_from_config
-from nbv.plan.frame import ObjectFrame, candidate_poses
+from nbv.plan.config import ENTRY, PLANNABLE, ObjectSettings, PlanSettings, ViewspaceSettings
+from nbv.plan.frame import ObjectFrame, candidate_poses, object_frame
 from nbv.plan.next_view import match_views
 from nbv.policies.registry import METHODS
 
@@ -57,9 +57,9 @@ def composed(overrides: list[str]):
 @pytest.mark.parametrize("camera", ["default", "small"])
 def test_the_config_composes_into_settings(box, tmp_path, camera):
     cfg = composed([f"mesh={box}", f"out_dir={tmp_path}", f"camera={camera}"])
-    settings = settings_from_config(cfg)
+    settings = ENTRY.build(cfg)
     assert settings.mesh == box and settings.method == "ig" and settings.n_views == 10
-    assert settings.viewspace.kind == "original" and settings.distance is None
+    assert settings.viewspace.kind == "original" and settings.viewspace.radius is None
     assert settings.camera.width == (640 if camera == "default" else 64)
 
 
@@ -80,7 +80,13 @@ def test_methods_that_read_the_ground_truth_are_refused_with_the_allowed_list(bo
         (["mesh=nowhere.obj"], "mesh='nowhere.obj': no such file or folder"),
         (["mesh=BOX", "start_view=40"], r"start_view=\[40\]: the viewspace 'original' has 33"),
         (["mesh=BOX", "viewspace.kind=sphere", "viewspace.n=0"], "viewspace.n=0: must be"),
-        (["mesh=BOX", "viewspace.radius=0.2", "object.radius=0.5"], "inside the object's sphere"),
+        (["mesh=BOX", "viewspace.radius=-1"], "viewspace.radius=-1.0: must be null or a positive"),
+        (
+            ["mesh=BOX", "viewspace.kind=rings", "viewspace.per_ring=[2,x]"],
+            r"viewspace.per_ring=\(2, 'x'\): must be an integer or a list of them",
+        ),
+        (["mesh=BOX", "match_degrees=90"], r"match_degrees=90.0: must be degrees in \[0, 90\)"),
+        (["mesh=BOX", "n_views=1"], "n_views=1: must be an integer >= 2"),
         (["mesh=BOX", "object.center=[1,2]"], r"object.center=\[1.0, 2.0\]: must be"),
         (["mesh=BOX", "save_captures=11"], "save_captures=11: the episode has n_views=10"),
         (["mesh=BOX", "hull.n_samp=0"], "hull.n_samp=0: must be an integer >= 1"),
@@ -90,7 +96,32 @@ def test_methods_that_read_the_ground_truth_are_refused_with_the_allowed_list(bo
 def test_bad_settings_name_the_key(box, tmp_path, overrides, message):
     cfg = composed([o.replace("BOX", str(box)) for o in overrides] + [f"out_dir={tmp_path}"])
     with pytest.raises(ConfigError, match=message):
-        settings_from_config(cfg)
+        ENTRY.build(cfg)
+
+
+def test_cameras_inside_the_object_sphere_are_refused_given_or_found(box, tmp_path):
+    inside = ViewspaceSettings(radius=0.2)
+    given = PlanSettings(out_dir=tmp_path, mesh=box, viewspace=inside,
+                         object=ObjectSettings(radius=0.5))  # fmt: skip
+    with pytest.raises(ValueError) as err:
+        object_frame(given, CENTER, RADIUS)
+    assert str(err.value) == (
+        "viewspace.radius=0.2: the cameras would sit inside the object's sphere (object.radius=0.5)"
+    )
+    found = PlanSettings(out_dir=tmp_path, mesh=box, viewspace=inside)
+    with pytest.raises(ValueError, match=r"inside the object's sphere \(radius 0.5612\)"):
+        object_frame(found, CENTER, RADIUS)
+    outside = PlanSettings(out_dir=tmp_path, mesh=box, viewspace=ViewspaceSettings(radius=0.6))
+    assert object_frame(outside, CENTER, RADIUS).radius == RADIUS
+
+
+def test_a_network_method_defaults_to_its_paths_checkpoint(box, tmp_path):
+    cfg = composed([f"mesh={box}", f"out_dir={tmp_path}", "method=pcnbv",
+                    f"paths.checkpoints.pcnbv={tmp_path / 'best.pt'}"])  # fmt: skip
+    assert ENTRY.build(cfg).checkpoint == tmp_path / "best.pt"
+    given = composed([f"mesh={box}", f"out_dir={tmp_path}", "method=pcnbv", "checkpoint=w.pt"])
+    assert ENTRY.build(given).checkpoint == Path("w.pt")
+    assert ENTRY.build(composed([f"mesh={box}", f"out_dir={tmp_path}"])).checkpoint is None
 
 
 def test_candidates_sit_around_the_object_at_twice_its_radius_or_the_given_distance():
@@ -223,7 +254,7 @@ def test_the_bench_decision_is_the_plan_from_the_same_capture_file(box, tmp_path
     spec = {"views": [{"file": "v.ply", "pose": poses[5].tolist()}]}
     (tmp_path / "caps" / "views.json").write_text(json.dumps(spec))
     settings = PlanSettings(out_dir=tmp_path / "out", method=method, captures=tmp_path / "caps",
-                            center=(0.0, 0.0, 0.0), radius=0.5, camera=camera,
+                            object=ObjectSettings((0.0, 0.0, 0.0), 0.5), camera=camera,
                             points_per_view=0)  # fmt: skip
     planned = plan_captures(settings).chosen
     assert planned == (bench if isinstance(bench, list) else [bench])
@@ -241,6 +272,29 @@ def test_the_example_mesh_is_the_first_synthetic_model_of_its_category(tmp_path)
     np.testing.assert_allclose(mesh.vertices, vertices, atol=1e-6)  # OBJ text, 8 decimals
     np.testing.assert_array_equal(mesh.faces, faces)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["chair.obj"]
-    with pytest.raises(ValueError, match="--category 'chairs': allowed: airplane, bed"):
+    with pytest.raises(ValueError, match="category='chairs': must be one of airplane, bed"):
         write_example(tmp_path / "x.obj", "chairs")
     assert not (tmp_path / "x.obj").exists()
+
+
+def test_the_example_command_writes_the_mesh_or_refuses_in_one_line(tmp_path):
+    def example(*args: str) -> subprocess.CompletedProcess:
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        env.pop("HYDRA_FULL_ERROR", None)
+        return subprocess.run(
+            [sys.executable, "-m", "nbv.plan.example", *args, "hydra.run.dir=run"],
+            cwd=tmp_path, capture_output=True, text=True, timeout=300, env=env,
+        )  # fmt: skip
+
+    for args, line in [
+        (["out=chair.txt"], "out='chair.txt': must be a mesh file ending in .obj, .ply, .stl"),
+        (["out=x.obj", "category=chairs"], "category='chairs': must be one of airplane, bed"),
+        ([], "out: no value; the config must give one"),
+    ]:
+        proc = example(*args)
+        assert proc.returncode == 2
+        assert proc.stderr.strip().splitlines()[-1].startswith(f"nbv.plan.example: {line}")
+        assert not list(tmp_path.iterdir())
+    proc = example("out=mesh/bed.ply", "category=bed", "seed=1")
+    assert proc.returncode == 0, proc.stderr
+    assert len(trimesh.load(tmp_path / "mesh" / "bed.ply").faces) > 0

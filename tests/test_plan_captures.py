@@ -14,14 +14,13 @@ import pytest
 
 import nbv.dataset
 from nbv.assets.weights import shipped_weights
-from nbv.dataset.config import Settings
 from nbv.dataset.generate import generate
+from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics, opencv_to_blender, project
-from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.plan.captures import CaptureError, check_rigid, read_captures
-from nbv.plan.config import PlanSettings
+from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
+from nbv.plan.method import policy_rng
 from nbv.plan.next_view import plan_captures
-from nbv.plan.policy import policy_rng
 from nbv.planning.information_gain import view_gains
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.conditioned import ConditionedPolicy
@@ -39,10 +38,10 @@ SCALE, SHIFT = 3.0, np.array([1.5, -2.0, 0.7])
 def model(tmp_path_factory):
     out = tmp_path_factory.mktemp("dataset")
     summary = generate(
-        Settings(
-            out_dir=out, counts={"train": 0, "valid": 0, "test": 0, "unseen": 1}, limit=1,
-            intrinsics=CAMERA, n_gt=1000, eps=EPS, points_per_view=200, backend="raycast",
-            progress=False,
+        GenerationSettings(
+            out_dir=out, synthetic=Synthetic({"train": 0, "valid": 0, "test": 0, "unseen": 1}),
+            limit=1, intrinsics=CAMERA, n_gt=1000, eps=EPS, points_per_view=200,
+            renderer=Renderer(backend="raycast"), progress=False,
         )
     )  # fmt: skip
     assert summary.produced == 1
@@ -100,8 +99,9 @@ def write_folder(folder: Path, model, views: list[int], kind: str, scale=1.0, sh
 
 def plan(folder: Path, method: str, center=(0.0, 0.0, 0.0), radius=0.5):
     settings = PlanSettings(
-        out_dir=folder.parent / "out", method=method, captures=folder, center=center,
-        radius=radius, camera=CAMERA, eps=EPS, points_per_view=0, n_views=10,
+        out_dir=folder.parent / "out", method=method, captures=folder,
+        object=ObjectSettings(center, radius), camera=CAMERA, eps=EPS, points_per_view=0,
+        n_views=10,
     )  # fmt: skip
     return plan_captures(settings)
 
@@ -341,9 +341,9 @@ def test_a_capture_off_the_viewspace_joins_as_an_extra_visited_view(model, tmp_p
     # The same captures with a viewspace of one ring that holds neither: both become extras,
     # and the plan chooses among the ring's views.
     settings = PlanSettings(
-        out_dir=tmp_path / "out", method="ig", captures=folder, center=(0.0, 0.0, 0.0),
-        radius=0.5, camera=CAMERA, points_per_view=0,
-        viewspace=ViewspaceSpec(kind="rings", elevations=(15.0,), per_ring=6),
+        out_dir=tmp_path / "out", method="ig", captures=folder,
+        object=ObjectSettings((0.0, 0.0, 0.0), 0.5), camera=CAMERA, points_per_view=0,
+        viewspace=ViewspaceSettings(kind="rings", elevations=(15.0,), per_ring=6),
     )  # fmt: skip
     ring = plan_captures(settings)
     assert ring.n_candidates == 6 and ring.visited == [6, 7] and 0 <= ring.chosen[0] < 6
@@ -355,7 +355,8 @@ def test_depth_captures_of_one_camera_make_it_the_planner_camera(model, tmp_path
     views = episode_views(model, "ig")
     folder = write_folder(tmp_path / "caps", model, views[:2], "npy")
     settings = PlanSettings(out_dir=tmp_path / "out", method="ig", captures=folder,
-                            center=(0.0, 0.0, 0.0), radius=0.5, points_per_view=0)  # fmt: skip
+                            object=ObjectSettings((0.0, 0.0, 0.0), 0.5),
+                            points_per_view=0)  # fmt: skip
     assert settings.camera != CAMERA
     result = plan_captures(settings)
     assert result.camera == CAMERA and result.chosen == [views[2]]

@@ -12,8 +12,8 @@ import pytest
 from datagen import SMALL_CAMERA
 
 import nbv.dataset
-from nbv.dataset.config import Settings
 from nbv.dataset.generate import generate
+from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.planning.hull import convex_hull
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.planner import plan_sph
@@ -40,14 +40,14 @@ def make_tiny_dataset(out: Path, models: int = 2) -> Path:
     """The first ``models`` synthetic models of the unseen categories (split test), ray cast
     with a 64 x 48 camera, 1000 ground-truth points, 50 stored points a view."""
     summary = generate(
-        Settings(
+        GenerationSettings(
             out_dir=out,
-            counts={"train": 0, "valid": 0, "test": 0, "unseen": 1},
+            synthetic=Synthetic(counts={"train": 0, "valid": 0, "test": 0, "unseen": 1}),
             limit=models,
             intrinsics=SMALL_CAMERA,
             n_gt=1000,
             points_per_view=50,
-            backend="raycast",
+            renderer=Renderer(backend="raycast"),
             progress=False,
         )
     )

@@ -105,3 +105,24 @@ def test_settings_made_in_code_are_checked_alike():
 def test_round_trip_through_yaml_form():
     s = Outer(out_dir=Path("o"), center=(1.0, 2.0, 3.0), limit=4)
     assert build(Outer, as_config(s)) == s
+
+
+@dataclass(frozen=True)
+class Deep:
+    inner: Inner = setting(factory=lambda: Inner(samples=5))
+
+
+@dataclass(frozen=True)
+class Deeper:
+    deep: Deep = field(default_factory=Deep)
+    lists: tuple[int, ...] = (1, 2)
+
+
+def test_a_group_whose_default_holds_a_group_has_a_schema():
+    node = OmegaConf.structured(schema(Deeper))
+    assert node.deep.inner.samples == 5
+    assert build(Deeper, {}) == Deeper()
+    assert build(Deeper, {"deep": {"inner": {"samples": 6}}}).deep.inner == Inner(samples=6)
+    first, second = schema(Deeper)(), schema(Deeper)()
+    first.lists.append(3)
+    assert second.lists == [1, 2]  # each instance gets its own copy of a mutable default

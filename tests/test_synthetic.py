@@ -2,6 +2,7 @@ import hashlib
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,12 +15,13 @@ from nbv.assets.synthetic import (
     SyntheticEntry,
     build,
     catalogue,
-    main,
     make_model,
     model_rng,
     preview,
     render_tile,
 )
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _entry(category: str, index: int) -> SyntheticEntry:
@@ -227,8 +229,23 @@ def test_preview_writes_the_grid(tmp_path):
 
 
 def test_command_line(tmp_path):
+    """``python -m nbv.synthetic``: the options are keys; a bad one refuses the run (status 2)."""
     path = tmp_path / "cli.png"
-    assert main(["--preview", str(path), "--seed", "3", "--per-category", "1", "--tile", "16"]) == 0
+    run = [
+        sys.executable,
+        "-m",
+        "nbv.synthetic",
+        f"preview={path}",
+        f"hydra.run.dir={tmp_path / 'run'}",
+    ]
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    done = subprocess.run([*run, "seed=3", "per_category=1", "tile=16"], env=env, cwd=ROOT)
+    assert done.returncode == 0
     assert Image.open(path).size == (150 + 16, 16 * 16)
-    with pytest.raises(SystemExit):
-        main(["--preview", str(path), "--per-category", "0"])
+    bad = subprocess.run(
+        [*run, "per_category=0"], env=env, cwd=ROOT, capture_output=True, text=True
+    )
+    assert bad.returncode == 2
+    assert bad.stderr.strip().splitlines()[-1] == (
+        "nbv.synthetic: per_category=0: must be an integer >= 1"
+    )

@@ -1,32 +1,33 @@
-"""The settings of ``python -m nbv.bench``: the schema of ``conf/bench.yaml`` and the settings
-built from it.
-
-:class:`BenchConfig` is registered as ``bench_schema``, the first entry of the config's defaults
-list: hydra refuses an unknown key or a value of the wrong type while composing.
-"""
+"""The settings of ``python -m nbv.bench``: :class:`BenchSettings`, the one declaration of
+``conf/bench.yaml``'s keys (the hydra schema ``bench_schema`` is derived from it by
+:mod:`nbv.config.settings`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
-from omegaconf import MISSING
-
-from nbv.assets.weights import shipped_weights
-from nbv.config.schema import ConfigError, PathsConfig, register, validated
+from nbv.config.schema import ConfigError, PathsConfig
+from nbv.config.settings import Entry
+from nbv.policies.registry import PCNBV
 
 
 @dataclass(frozen=True)
 class BenchSettings:
-    """What the benchmark runs (see ``conf/bench.yaml``).
+    """What the benchmark runs (``conf/bench.yaml``).
 
     Attributes:
-        checkpoint: trained PCNBV weights the episode row times; None = untrained weights.
-            (The PCNBV-sph episode row times the shipped PCNBV-sph weights.)
-        network: time the PCNBV episode row.
-        render: time the rendering rows (Blender against ray casting).
-        dataset: dataset folder of the 512-point ground-truth hull check (skipped when absent).
-        json: also write the rows there as JSON; None = no file.
+        checkpoint: trained PCNBV weights the 9-view episode row times; null = fold 0's
+            ``best.pt`` (``paths.checkpoints.pcnbv``) when it exists, else the weights the
+            package ships. A path given must be a file. (The PCNBV-sph episode row times the
+            shipped PCNBV-sph weights.)
+        network: time the PCNBV and PCNBV-sph episode rows.
+        render: time the rows of Blender against ray casting (the slowest part).
+        dataset: dataset folder of the check that a 512-point ground truth has nearly the hull
+            volume of the full one (skipped when the folder does not exist; ``paths.dataset``).
+        json: also write the rows as JSON to this file; null = no file.
     """
 
     checkpoint: Path | None = None
@@ -35,45 +36,25 @@ class BenchSettings:
     dataset: Path = Path("data/generated/synthetic")
     json: Path | None = None
 
-
-@dataclass
-class BenchConfig:
-    """``conf/bench.yaml``."""
-
-    checkpoint: str | None = MISSING
-    network: bool = MISSING
-    render: bool = MISSING
-    dataset: str = MISSING
-    json: str | None = MISSING
-    paths: PathsConfig = field(default_factory=PathsConfig)
-
-
-register("bench_schema", BenchConfig)
-
-
-def settings_from_config(cfg) -> BenchSettings:
-    """Build :class:`BenchSettings` from the composed hydra config of ``conf/bench.yaml``.
-
-    ``checkpoint=null`` times fold 0's ``best.pt`` (``paths.checkpoints.pcnbv``) when it exists,
-    else the shipped PCNBV weights; a checkpoint given by name must exist.
-
-    Raises:
-        ConfigError: an unknown key, a value of the wrong type, a checkpoint that is not there.
-    """
-    c = validated(BenchConfig, cfg)
-    if c["checkpoint"] is None:
-        fold0 = Path(c["paths"]["checkpoints"]["pcnbv"])
-        checkpoint = fold0 if fold0.is_file() else shipped_weights("pcnbv")
-    else:
-        checkpoint = Path(c["checkpoint"])
-        if not checkpoint.is_file():
+    def __post_init__(self) -> None:
+        if self.checkpoint is not None and not Path(self.checkpoint).is_file():
             raise ConfigError(
-                f"checkpoint={c['checkpoint']!r}: no such file (a best.pt of python -m train)"
+                f"checkpoint={str(self.checkpoint)!r}: no such file (a best.pt of python -m train)"
             )
-    return BenchSettings(
-        checkpoint=checkpoint,
-        network=c["network"],
-        render=c["render"],
-        dataset=Path(c["dataset"]),
-        json=Path(c["json"]) if c["json"] else None,
-    )
+
+
+class BenchEntry(Entry):
+    """``bench_schema``; :meth:`build` also finds the default checkpoint."""
+
+    def build(self, cfg: Any) -> BenchSettings:
+        """The settings of a composed ``conf/bench.yaml``; ``checkpoint=null`` becomes the
+        registry's weights of PCNBV (:meth:`nbv.policies.registry.Method.weights`): fold 0's
+        ``best.pt`` when it exists, else the shipped ones."""
+        settings = super().build(cfg)
+        if settings.checkpoint is None:
+            fold0 = cfg["paths"]["checkpoints"].get(PCNBV.name)
+            settings = dataclasses.replace(settings, checkpoint=PCNBV.weights(fold0))
+        return settings
+
+
+ENTRY = BenchEntry("bench_schema", BenchSettings, extra=(("paths", PathsConfig),))

@@ -15,9 +15,10 @@ import numpy as np
 
 from nbv.bench.timing import best_time
 from nbv.bench.volumetric import plain_decision
+from nbv.geometry.scores import DEFAULT_EPS
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
-from nbv.policies.episode import captured_state
-from nbv.policies.registry import METHODS, MethodContext
+from nbv.policies.episode import EPISODE_VIEWS, captured_state
+from nbv.policies.registry import HULL_SCO, IG, METHODS, MethodContext
 from nbv.utils.seeding import named_rng
 
 #: Points of the benchmark's capture.
@@ -42,32 +43,34 @@ def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrin
     builds (:func:`nbv.policies.episode.captured_state`)."""
     parts = [points if v == view else np.zeros((0, 3)) for v in range(len(poses))]
     state = captured_state(poses, parts, [view])
-    ctx = MethodContext({}, hull, intrinsics, 0.00707, 10, VolumetricSettings())
-    # The generator of nbv.plan.policy.policy_rng.
+    ctx = MethodContext({}, hull, intrinsics, DEFAULT_EPS, EPISODE_VIEWS, VolumetricSettings())
+    # The generator of nbv.plan.method.policy_rng.
     return METHODS[method].build(ctx, named_rng(0, "plan", method))(state)
 
 
 def capture_rows(views: list[np.ndarray], poses: np.ndarray, intrinsics) -> list[dict]:
     """The rows: ``hull_sco`` and ``ig`` deciding from a 50k-point capture."""
     view, points = capture(views)
+    # float32, as the plan's record holds them: the plain reference reads what the policy reads.
+    points = points.astype(np.float32)
     analytic, raycast = PlannerSettings(), PlannerSettings(simulation="raycast")
     rows = []
 
     def hull_ours():
-        return decide("hull_sco", view, points, poses, intrinsics, analytic)
+        return decide(HULL_SCO.name, view, points, poses, intrinsics, analytic)
 
     def hull_ref():
-        return decide("hull_sco", view, points, poses, intrinsics, raycast)
+        return decide(HULL_SCO.name, view, points, poses, intrinsics, raycast)
 
     def ig_ours():
-        return decide("ig", view, points, poses, intrinsics, analytic)
+        return decide(IG.name, view, points, poses, intrinsics, analytic)
 
     def ig_ref():
         return plain_decision([(view, points)], poses, intrinsics, VolumetricSettings())
 
     for name, ours, ref, note in (
-        ("hull_sco", hull_ours, hull_ref, "analytic vs ray-cast view simulation"),
-        ("ig", ig_ours, ig_ref, "compiled vs plain numpy decision"),
+        (HULL_SCO.name, hull_ours, hull_ref, "analytic vs ray-cast view simulation"),
+        (IG.name, ig_ours, ig_ref, "compiled vs plain numpy decision"),
     ):
         t_ours = best_time(ours, repeat=3, budget=10)
         t_ref = best_time(ref, repeat=2, budget=20)

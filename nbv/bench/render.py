@@ -1,13 +1,12 @@
 """Benchmark the depth renderers: seconds a view for Blender and ray casting, in the same run.
 
-``python -m nbv.bench.render [--views 33] [--threads 2] [--meshes DIR | --no-meshes]
-[--binary PATH | --no-binary]`` renders a 50k-triangle mesh (and every OBJ of ``--meshes``, by
-default ``../shared/meshes`` beside the checkout when it exists) at 640 x 480 from the original
-viewspace with both backends, back-projects every view (:func:`nbv.geometry.camera.backproject`),
-checks that the backends agree and prints a table. A Blender binary (``blender`` on the PATH by
-default, e.g. Debian's 3.4.1 from ``scripts/ensure_blender.sh``) gets rows of its own beside the
-bpy wheel's, named ``<mesh> with the Blender <version> binary``; without one they are skipped with
-a logged note.
+:func:`benchmark` renders a 50k-triangle mesh (and every OBJ of a folder) at 640 x 480 from the
+original viewspace with both backends, back-projects every view
+(:func:`nbv.geometry.camera.backproject`) and checks that the backends agree; the rendering rows
+of ``python -m nbv.bench`` come from it, and the developer tool ``scripts/bench_render.py``
+prints its whole table. A Blender binary (``blender`` on the PATH by default, e.g. Debian's 3.4.1
+from ``scripts/ensure_blender.sh``) gets rows of its own beside the bpy wheel's, named
+``<mesh> with the Blender <version> binary``; without one they are skipped with a logged note.
 
 Blender's time a view is measured in steady state: the process first renders one view of the
 mesh (start-up, scene set-up), and the clock runs from that mesh's result to the result of the
@@ -16,7 +15,6 @@ full set of views, plus the back-projection. Start-up is reported separately.
 
 from __future__ import annotations
 
-import argparse
 import logging
 import os
 import resource
@@ -36,8 +34,6 @@ from nbv.render.raycast import render_raycast
 
 log = logging.getLogger(__name__)
 
-#: Development meshes beside a checkout (not part of the project), used when present.
-SHARED_MESHES = Path(__file__).resolve().parents[3] / "shared" / "meshes"
 #: Agreement threshold between the backends, world units.
 AGREEMENT_TOL = 1e-4
 #: The Blender binary timed beside the bpy wheel by default: the one on the PATH.
@@ -303,40 +299,3 @@ def format_table(results: dict) -> str:
         "seconds a view as wall/CPU; ratio = Blender / ray casting (+bp: with back-projection)"
     )
     return "\n".join(rows)
-
-
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--views", type=int, default=33)
-    parser.add_argument("--width", type=int, default=640)
-    parser.add_argument("--height", type=int, default=480)
-    parser.add_argument("--threads", type=int, default=2)
-    parser.add_argument(
-        "--meshes",
-        type=Path,
-        default=SHARED_MESHES if SHARED_MESHES.is_dir() else None,
-        help=f"folder of .obj files to add (default: {SHARED_MESHES} when it exists)",
-    )
-    parser.add_argument("--no-meshes", action="store_true", help="only the bumpy torus")
-    parser.add_argument("--blender", default=None, help="Blender executable (default: bpy)")
-    parser.add_argument(
-        "--binary",
-        default=DEFAULT_BINARY,
-        help=f"Blender binary timed beside it (default: {DEFAULT_BINARY!r} on the PATH)",
-    )
-    parser.add_argument("--no-binary", action="store_true", help="skip the binary's rows")
-    parser.add_argument("--repeat", type=int, default=1, help="keep the fastest of N runs")
-    args = parser.parse_args(argv)
-    if args.meshes is not None and not args.meshes.is_dir():
-        parser.error(f"--meshes {args.meshes} is not a folder")
-    meshes = None if args.no_meshes else args.meshes
-    logging.basicConfig(level=logging.INFO, format="%(name)s: %(message)s")
-    binary = None if args.no_binary else args.binary
-    results = benchmark(
-        args.views, args.width, args.height, args.threads, meshes, args.blender, args.repeat, binary
-    )
-    print(format_table(results))
-
-
-if __name__ == "__main__":
-    main()

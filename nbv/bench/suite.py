@@ -21,7 +21,7 @@ from scipy.spatial import ConvexHull, cKDTree
 
 from nbv.assets.meshes import Mesh, normalise, sample_surface
 from nbv.assets.synthetic import build, catalogue
-from nbv.assets.weights import SHIPPED_SCORER, shipped_weights
+from nbv.assets.weights import SHIPPED_SCORER
 from nbv.bench.plan import capture_rows
 from nbv.bench.timing import best_time
 from nbv.bench.volumetric import decision_row
@@ -30,6 +30,7 @@ from nbv.geometry.clouds import farthest_points
 from nbv.geometry.hull import hull_volume
 from nbv.geometry.scores import (
     DEFAULT_EPS,
+    DEFAULT_N_GT,
     coverage_bits,
     coverage_from_bits,
     view_hull_vertices,
@@ -38,14 +39,18 @@ from nbv.geometry.scores import (
 from nbv.geometry.sph import equiangular_directions, signature, unit_vectors
 from nbv.geometry.union import UnionHulls
 from nbv.geometry.viewspace import original_viewspace
-from nbv.planning.hull import convex_hull, sample_hull
+from nbv.planning.hull import DEFAULT_N_SAMP, convex_hull, sample_hull
 from nbv.planning.planner import Plan
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.scorer import load_scorer
 from nbv.planning.set_cover import greedy_max_coverage
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets
+from nbv.policies.registry import PCNBV_SPH
 from nbv.render.raycast import render_raycast
+
+#: Points of the small ground truth whose hull :func:`small_gt_hull_error` checks.
+SMALL_GT = 512
 
 
 def numpy_fps(points: np.ndarray, n: int, start: int = 0) -> np.ndarray:
@@ -121,7 +126,7 @@ def bench_scene(seed: int = 0) -> dict:
     return {
         "mesh": mesh,
         "views": views,
-        "gt": sample_surface(mesh, 16384, rng).astype(np.float64),
+        "gt": sample_surface(mesh, DEFAULT_N_GT, rng).astype(np.float64),
         "cloud100k": cloud,
         "poses": poses,
         "intrinsics": intrinsics,
@@ -149,7 +154,9 @@ def run(
     # The planner sees a start view as the dataset stores it (points_per_view = 2048).
     start_cloud = views[1][rng_pick(len(views[1]), 2048, seed)]
     start_hull = start_cloud[ConvexHull(start_cloud).vertices]
-    samples, normals, face_ids = sample_hull(start_hull, 16384, np.random.default_rng(seed))
+    samples, normals, face_ids = sample_hull(
+        start_hull, DEFAULT_N_SAMP, np.random.default_rng(seed)
+    )
     hull = convex_hull(start_hull)
     sets = view_sets(samples, normals, scene["poses"], scene["intrinsics"])
     rows = []
@@ -270,7 +277,7 @@ def run(
     if network:
         from nbv.bench.network import episode_seconds
 
-        sph = shipped_weights("pcnbv_sph")
+        sph = PCNBV_SPH.weights(None)  # the shipped weights
         episodes = [("PCNBV 9-view episode, 512 points (sampling + forwards)", checkpoint, 0.13),
                     ("PCNBV-sph 9-view episode (signature + forwards)", sph, 0.04)]  # fmt: skip
         for name, weights, target in episodes:
@@ -315,8 +322,9 @@ def run(
     return rows
 
 
-def small_gt_hull_error(dataset_dir: Path, n: int = 512, seed: int = 0) -> dict:
-    """The paper's claim that an ``n``-point ground truth has nearly the hull volume of 16384.
+def small_gt_hull_error(dataset_dir: Path, n: int = SMALL_GT, seed: int = 0) -> dict:
+    """The paper's claim that an ``n``-point ground truth has nearly the hull volume of the
+    full one (:data:`~nbv.geometry.scores.DEFAULT_N_GT` points).
 
     For every model with a hull volume: relative shortfall ``(V_full - V_n) / V_full`` of the hull
     of a seeded random ``n``-point subset of the ground truth.

@@ -4,7 +4,8 @@
 (one numpy step for all segments per voxel crossed), :func:`numpy_ray_gains` the gain metrics and
 :func:`numpy_ray_features` ``ig_learned``'s per-ray features on whole ``(R, S)`` arrays, and
 :func:`plain_decision` one information-gain decision built from them (``scorer``: an
-``ig_learned`` decision): the fair references of :mod:`nbv.planning.raytrace`,
+``ig_learned`` decision), timed against the policies themselves (:func:`decision`): the fair
+references of :mod:`nbv.planning.raytrace`,
 :func:`nbv.planning.information_gain.ray_gains`, :func:`nbv.planning.view_features.ray_features`,
 :class:`nbv.policies.volumetric.InformationGainPolicy` and
 :class:`nbv.policies.learned_gain.LearnedGainPolicy`.
@@ -18,17 +19,14 @@ import numpy as np
 
 from nbv.bench.timing import best_time
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.information_gain import (
-    candidate_segments,
-    candidate_voxels,
-    frontier,
-    view_gains,
-)
+from nbv.planning.information_gain import candidate_segments, frontier
 from nbv.planning.occupancy import OccupancyMap, background_directions, log_odds_of
 from nbv.planning.raytrace import clip_to_box, drop_end_voxels, flat_index
 from nbv.planning.scorer import GainScorer
 from nbv.planning.settings import VolumetricSettings
-from nbv.planning.view_features import view_features
+from nbv.policies.episode import captured_state
+from nbv.policies.learned_gain import LearnedGainPolicy
+from nbv.policies.volumetric import InformationGainPolicy
 
 
 def numpy_traverse(
@@ -193,20 +191,18 @@ def decision(
     views, poses, intrinsics: Intrinsics, settings: VolumetricSettings,
     scorer: GainScorer | None = None,
 ) -> int:  # fmt: skip
-    """The same decision as :func:`plain_decision` through the project's code, as the policy
-    makes its first one on a viewspace (the candidates' voxels traced too)."""
-    occupancy = OccupancyMap(settings.occupancy())
+    """The same decision as :func:`plain_decision` made by the policy itself: a fresh
+    :class:`~nbv.policies.volumetric.InformationGainPolicy` (``scorer``: a
+    :class:`~nbv.policies.learned_gain.LearnedGainPolicy`) called once on the captured state
+    (:func:`nbv.policies.episode.captured_state`, whose record holds the points as float32), as
+    it makes its first decision on a viewspace: the map built, the candidates' voxels traced."""
+    parts = [np.zeros((0, 3), np.float32)] * len(poses)
     for v, points in views:
-        misses = background_directions(points, poses[v], intrinsics, settings.block)
-        occupancy.insert_view(poses[v][:3, 3], points, misses)
-    captured = {v for v, _ in views}
-    open_ = [v for v in range(len(poses)) if v not in captured]
-    voxels = candidate_voxels(poses[open_], intrinsics, settings.columns, occupancy.settings)
+        parts[v] = points
+    state = captured_state(poses, parts, [v for v, _ in views])
     if scorer is not None:
-        order = [v for v, _ in views]
-        features = view_features(occupancy, voxels, poses[:, :3, 3], order, np.array(open_))
-        return open_[int(np.argmax(scorer.scores(features)))]
-    return open_[int(np.argmax(view_gains(occupancy, voxels, settings.metric)))]
+        return LearnedGainPolicy(settings, intrinsics, scorer=scorer)(state)
+    return InformationGainPolicy(settings, intrinsics)(state)
 
 
 def decision_row(
@@ -217,7 +213,8 @@ def decision_row(
     after two captured views (1 and 9) at the default settings: seconds of ours and of the plain
     reference, the same inputs, the same number of runs each."""
     settings = VolumetricSettings()
-    views = [(1, stored[1]), (9, stored[9])]
+    # float32, as a record holds them and the policy reads them: both sides get the same points.
+    views = [(v, stored[v].astype(np.float32)) for v in (1, 9)]
     ours = best_time(lambda: decision(views, poses, intrinsics, settings, scorer), repeat=3,
                      budget=10)  # fmt: skip
     plain = best_time(lambda: plain_decision(views, poses, intrinsics, settings, scorer),

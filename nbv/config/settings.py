@@ -26,6 +26,7 @@ Field metadata understood here (set it with :func:`setting`):
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import types
@@ -121,13 +122,29 @@ def _default_of(f: dataclasses.Field) -> Any:
     return plain(value)
 
 
+def _instance(node: type, values: Mapping[str, Any]) -> Any:
+    """A schema dataclass holding ``values`` (a group's default), its own groups made alike."""
+    kwargs = {}
+    for f in dataclasses.fields(node):
+        if f.name in values:
+            value = values[f.name]
+            if _is_settings(f.type) and isinstance(value, dict):
+                value = _instance(f.type, value)
+            kwargs[f.name] = copy.deepcopy(value)
+    return node(**kwargs)
+
+
 def _schema_field(f: dataclasses.Field, kind: Any) -> tuple[str, Any, Any]:
     ctype = f.metadata.get("config") or _config_type(kind)
     default = _default_of(f)
     if _is_settings(ctype) and isinstance(default, dict):
-        return key_of(f), ctype, dataclasses.field(default_factory=lambda: ctype(**default))
+        return (
+            key_of(f),
+            ctype,
+            dataclasses.field(default_factory=lambda: _instance(ctype, default)),
+        )
     if isinstance(default, dict | list):
-        return key_of(f), ctype, dataclasses.field(default_factory=lambda: default)
+        return key_of(f), ctype, dataclasses.field(default_factory=lambda: copy.deepcopy(default))
     return key_of(f), ctype, dataclasses.field(default=default)
 
 

@@ -1,34 +1,38 @@
 """``python -m nbv.dataset [key=value ...]``: generate (or resume) a dataset shard and its samples.
 
-Settings: ``conf/dataset.yaml`` (schema: :mod:`nbv.dataset.config`). On SLURM: ``python -m
-nbv.dataset -m hydra/launcher=slurm num_shards=4 shard=0,1,2,3`` (one array task per shard) or
-``scripts/slurm_dataset.sbatch``. A refused setting ends with one line on stderr and exit status 2,
-and leaves no run folder behind (:mod:`nbv.config.cli`).
+Settings: ``conf/dataset.yaml`` (declared by :class:`nbv.dataset.config.Settings`). On SLURM:
+``python -m nbv.dataset -m hydra/launcher=slurm num_shards=4 shard=0,1,2,3`` (one array task per
+shard) or ``scripts/slurm_dataset.sbatch``. A refused setting, catalogue or viewspace ends with one
+line on stderr and exit status 2, and leaves no run folder behind (:mod:`nbv.config.cli`); a run
+that could make no model ends with status 1.
 """
 
 import sys
 
-import hydra
-from omegaconf import DictConfig
-
-from nbv.config.cli import entry_point, refuse
-from nbv.dataset.config import sample_settings_from_config, settings_from_config
-from nbv.dataset.generate import run
+from nbv.config.cli import command
+from nbv.dataset.config import ENTRY
 
 PROG = "nbv.dataset"
 
 
-@hydra.main(config_path="../../conf", config_name="dataset", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    try:
-        settings = settings_from_config(cfg)
-        sample_settings = sample_settings_from_config(cfg)
-        status = run(settings, sample_settings)
-    except ValueError as err:  # bad settings, catalogues, viewspaces: one clear line
-        refuse(PROG, err)
+def start(cfg) -> int:
+    """Build the settings and run the shard: the exit status of :func:`nbv.dataset.generate.run`.
+
+    The work runs here, not in a ``finish``: a ``ValueError`` it raises (a catalogue, a viewspace,
+    a folder made with other settings) refuses the run like a bad setting.
+    """
+    from nbv.dataset.generate import run
+
+    settings = ENTRY.build(cfg)
+    return run(settings, settings.sample_settings())
+
+
+def finish(status: int) -> None:
     if status:
         sys.exit(status)
 
 
+main = command(PROG, "dataset", start, finish)
+
 if __name__ == "__main__":
-    entry_point(PROG, main)
+    main()

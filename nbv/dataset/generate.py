@@ -27,20 +27,23 @@ import numpy as np
 from tqdm import tqdm
 
 from nbv.assets.meshes import MeshError, sample_surface
-from nbv.dataset.config import ConfigError, Settings
-from nbv.dataset.records import ModelData, ViewData, offsets_of
+from nbv.dataset.generation import GenerationSettings
+from nbv.dataset.records import ModelData
 from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
 from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
 from nbv.dataset.sources import SourceModel, list_models, load_normalised
-from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
-from nbv.geometry.hull import QhullFailure, hull_vertices, hull_volume
-from nbv.geometry.scores import covered_mask
+from nbv.dataset.views import view_data
+from nbv.geometry.camera import viewspace_poses
+from nbv.geometry.hull import QhullFailure, hull_volume
 from nbv.geometry.viewspace import get_viewspace
 from nbv.render.backends import render
 from nbv.render.job import RenderError, RenderJob
 from nbv.render.noise import noisy_depth
 from nbv.render.preflight import check_blender
+from nbv.utils.fields import ConfigError
 from nbv.utils.seeding import named_rng
+
+__all__ = ["Summary", "exit_status", "generate", "report", "run", "shard_name", "view_data"]
 
 log = logging.getLogger(__name__)
 
@@ -73,57 +76,6 @@ def shard_name(shard: int, num_shards: int) -> str:
     return f"shard-{shard:05d}-of-{num_shards:05d}.h5"
 
 
-def view_data(
-    depth: np.ndarray,
-    poses: np.ndarray,
-    intrinsics: Intrinsics,
-    gt_points: np.ndarray,
-    eps: float,
-    points_per_view: int,
-    rng: np.random.Generator,
-    keep_depth: bool = False,
-) -> ViewData:
-    """Back-project, score and subsample the depth images of one viewspace.
-
-    Args:
-        depth: (V, H, W) planar depth, inf for background.
-        poses: (V, 4, 4) camera-to-world.
-        intrinsics: the camera.
-        gt_points: (n_gt, 3) ground truth the coverage bits refer to.
-        eps: coverage threshold, world units.
-        points_per_view: points kept per view (random subset); 0 keeps all.
-        rng: generator of the subsets.
-        keep_depth: also return the depth images as float16.
-
-    Returns:
-        The viewspace's :class:`ViewData`; coverage bits come from the full-resolution clouds.
-
-    Raises:
-        RenderError: no view shows anything of the object. (A single empty view is kept: a flat
-            object seen edge-on shows nothing.)
-    """
-    kept, bits, hulls = [], [], []
-    for v in range(len(depth)):
-        points = backproject(depth[v], intrinsics, poses[v])
-        bits.append(np.packbits(covered_mask(points, gt_points, eps)))
-        hulls.append(hull_vertices(points).astype(np.float32))
-        if 0 < points_per_view < len(points):
-            points = points[np.sort(rng.choice(len(points), points_per_view, replace=False))]
-        kept.append(points.astype(np.float32))
-    if not any(len(p) for p in kept):
-        raise RenderError("empty render: no view shows anything of the object")
-    return ViewData(
-        poses=poses,
-        points=np.concatenate(kept),
-        offsets=offsets_of(kept),
-        coverage=np.stack(bits),
-        hull_points=np.concatenate(hulls),
-        hull_offsets=offsets_of(hulls),
-        points_per_view=points_per_view,
-        depth=depth.astype(np.float16) if keep_depth else None,
-    )
-
-
 def _completed_keys(shard_file: Path, parts_dir: Path) -> tuple[dict[str, Path], list]:
     """Models already complete (key -> file holding them) and the failures recorded before."""
     done: dict[str, Path] = {}
@@ -138,7 +90,7 @@ def _completed_keys(shard_file: Path, parts_dir: Path) -> tuple[dict[str, Path],
     return done, failures
 
 
-def _check_identity(settings: Settings, shard_file: Path, parts_dir: Path) -> None:
+def _check_identity(settings: GenerationSettings, shard_file: Path, parts_dir: Path) -> None:
     """Refuse to mix data made with other settings into an existing shard."""
     wanted = config_json(settings.data_identity())
     found = None
@@ -158,7 +110,7 @@ def _check_identity(settings: Settings, shard_file: Path, parts_dir: Path) -> No
     (parts_dir / "config.json").write_text(wanted)
 
 
-def _root_attrs(settings: Settings) -> dict:
+def _root_attrs(settings: GenerationSettings) -> dict:
     return {
         "schema_version": SCHEMA_VERSION,
         "eps": settings.eps,
@@ -178,7 +130,7 @@ class _Prepared:
     rng: np.random.Generator
 
 
-def _prepare(model: SourceModel, settings: Settings, poses: np.ndarray):
+def _prepare(model: SourceModel, settings: GenerationSettings, poses: np.ndarray):
     """Normalise the mesh and sample the ground truth: (render job, prepared) of one model."""
     rng = named_rng(settings.seed, model.key)
     mesh, center, scale = load_normalised(model, settings.seed)
@@ -187,7 +139,9 @@ def _prepare(model: SourceModel, settings: Settings, poses: np.ndarray):
     return job, _Prepared(model, center, scale, gt, rng)
 
 
-def _finish(prep: _Prepared, depth: np.ndarray, poses: dict, settings: Settings) -> ModelData:
+def _finish(
+    prep: _Prepared, depth: np.ndarray, poses: dict, settings: GenerationSettings
+) -> ModelData:
     """Turn one model's rendered depth (all viewspaces stacked) into its dataset record (the
     sensor model of ``settings.noise`` applied first, seeded by the seed and the model)."""
     if settings.noise is not None:
@@ -229,7 +183,7 @@ def _finish(prep: _Prepared, depth: np.ndarray, poses: dict, settings: Settings)
     )
 
 
-def generate(settings: Settings) -> Summary:
+def generate(settings: GenerationSettings) -> Summary:
     """Generate (or resume) one shard of a dataset; see the module docstring.
 
     Returns:
@@ -239,17 +193,18 @@ def generate(settings: Settings) -> Summary:
         settings.source,
         settings.root,
         list(settings.categories) if settings.categories else None,
-        settings.counts,
+        settings.synthetic.counts,
         settings.split_fractions,
         settings.seed,
     )
     mine = models[settings.shard :: settings.num_shards]
     if settings.limit is not None:
         mine = mine[: settings.limit]
-    if settings.backend == "blender" and settings.blender is not None and mine:
+    renderer = settings.renderer
+    if renderer.backend == "blender" and renderer.blender is not None and mine:
         # A cluster's binary is tried once on a tiny scene, before anything is written: without
         # numpy, of another version or rendering nothing it would fail every model one by one.
-        check_blender(settings.blender, settings.threads, settings.device)
+        check_blender(renderer.blender, renderer.threads, renderer.device)
     out_dir = Path(settings.out_dir)
     name = shard_name(settings.shard, settings.num_shards)
     shard_file = out_dir / name
@@ -260,9 +215,9 @@ def generate(settings: Settings) -> Summary:
     all_poses = np.concatenate(list(poses.values()))
     root_attrs = _root_attrs(settings)
 
-    render_options: dict = {"threads": settings.threads}
-    if settings.backend == "blender":
-        render_options.update(blender=settings.blender, device=settings.device)
+    render_options: dict = {"threads": renderer.threads}
+    if renderer.backend == "blender":
+        render_options.update(blender=renderer.blender, device=renderer.device)
     done, old_failures = _completed_keys(shard_file, parts_dir)
     summary = Summary(shard_file, total=len(mine), skipped=sum(m.key in done for m in mine))
     todo = [m for m in mine if m.key not in done]
@@ -274,9 +229,9 @@ def generate(settings: Settings) -> Summary:
         disable=not settings.progress,
     )
     with tempfile.TemporaryDirectory(prefix="nbv-render-") as workdir:
-        for start in range(0, len(todo), settings.chunk):
+        for start in range(0, len(todo), renderer.chunk):
             jobs, prepared = [], {}
-            for model in todo[start : start + settings.chunk]:
+            for model in todo[start : start + renderer.chunk]:
                 try:
                     job, prepared[model.key] = _prepare(model, settings, all_poses)
                     jobs.append(job)
@@ -284,7 +239,7 @@ def generate(settings: Settings) -> Summary:
                     summary.failures.append((model.key, str(err)))
                     bar.update()
             results = render(
-                jobs, settings.intrinsics, settings.backend, Path(workdir), **render_options
+                jobs, settings.intrinsics, renderer.backend, Path(workdir), **render_options
             )
             for key, depth in results:
                 try:
@@ -309,7 +264,7 @@ def generate(settings: Settings) -> Summary:
     return summary
 
 
-def run(settings: Settings, sample_settings: SampleSettings | None) -> int:
+def run(settings: GenerationSettings, sample_settings: SampleSettings | None) -> int:
     """Generate the shard, then its training samples; log the summary; return the exit status."""
     summary = generate(settings)
     report(summary)

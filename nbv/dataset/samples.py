@@ -62,7 +62,21 @@ SCHEMA_VERSION = 1
 
 @dataclass(frozen=True)
 class SampleSettings:
-    """How samples are drawn (``samples:`` in ``conf/dataset.yaml``)."""
+    """How samples are drawn (``samples:`` in ``conf/dataset.yaml``, whose ``seed`` is the
+    dataset's). Stored as the samples file's attributes: a file made with other settings is
+    rewritten.
+
+    Attributes:
+        trajectories: random start views per model (>= 1).
+        steps: views visited per trajectory, one sample per state (>= 1).
+        n_points: farthest-point-sampled points per sample cloud (>= 1).
+        lmax: the spherical-harmonics degree of the signature (>= 0).
+        random_step_prob: probability that a step takes a random unvisited view instead of the
+            oracle's best, in [0, 1].
+        scores: the scores to sample: ``coverage`` and/or ``vig``.
+        viewspace: the dataset viewspace the trajectories walk.
+        seed: the seed of the start views and random steps.
+    """
 
     trajectories: int = 4
     steps: int = 10

@@ -1,14 +1,16 @@
-"""``python -m nbv.dataset.show <file or folder> <model> [--out PNG]``: draw a model's views.
+"""``python -m nbv.dataset.show dataset=<file or folder> key=<model> [out=PNG]``: draw a model's
+views.
 
 The picture holds one panel per view (the depth image when the dataset kept it, else the view's
 stored points projected back into its camera, coloured by depth) and the merged cloud of all views
-beside the ground truth.
+beside the ground truth. Settings: ``conf/dataset_show.yaml`` (declared by :class:`ShowSettings`).
+A model or viewspace the dataset does not hold ends with one line on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
-import argparse
 import logging
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -17,11 +19,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from nbv.dataset.reader import open_dataset  # noqa: E402
+from nbv.config.cli import command  # noqa: E402
+from nbv.config.schema import PathsConfig  # noqa: E402
+from nbv.config.settings import Entry  # noqa: E402
+from nbv.dataset.reader import Dataset, open_dataset  # noqa: E402
 from nbv.dataset.records import ModelData  # noqa: E402
 from nbv.geometry.camera import Intrinsics, project  # noqa: E402
 
-log = logging.getLogger(__name__)
+PROG = "nbv.dataset.show"
+# Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.
+log = logging.getLogger("nbv.dataset.show")
 
 
 def depth_panel(ax, model: ModelData, viewspace: str, v: int, intrinsics: Intrinsics) -> None:
@@ -72,20 +79,50 @@ def draw_model(model: ModelData, intrinsics: Intrinsics, viewspace: str, out: Pa
     return out
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("dataset", help="a shard file or a dataset folder")
-    parser.add_argument("model", help="model key, e.g. chair_0000")
-    parser.add_argument("--viewspace", default="original")
-    parser.add_argument("--out", type=Path, default=None, help="PNG path (default <model>.png)")
-    args = parser.parse_args(argv)
-    dataset = open_dataset(args.dataset)
-    if args.model not in dataset:
-        parser.error(f"model {args.model!r} not in {args.dataset}; some keys: {list(dataset)[:8]}")
-    out = args.out or Path(f"{args.model}_{args.viewspace}.png")
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    path = draw_model(dataset[args.model], dataset.intrinsics, args.viewspace, out)
+@dataclass(frozen=True)
+class ShowSettings:
+    """The model whose views ``python -m nbv.dataset.show`` draws, and where the picture goes.
+
+    Attributes:
+        dataset: a shard file or a dataset folder.
+        key: the model's key, e.g. ``chair_0000`` (not ``model``: that name is the networks'
+            config group of ``conf/model/``).
+        viewspace: the stored viewspace whose views are drawn.
+        out: the PNG to write; null = ``<key>_<viewspace>.png`` in the working directory.
+    """
+
+    dataset: Path = field(kw_only=True)
+    key: str = field(kw_only=True)
+    viewspace: str = "original"
+    out: Path | None = None
+
+    @property
+    def picture(self) -> Path:
+        """The PNG's path."""
+        return self.out or Path(f"{self.key}_{self.viewspace}.png")
+
+
+ENTRY = Entry("dataset_show_schema", ShowSettings, extra=(("paths", PathsConfig),))
+
+
+def start(cfg) -> tuple[ShowSettings, Dataset]:
+    """The settings and the dataset, checked to hold the model and its viewspace."""
+    s = ENTRY.build(cfg)
+    dataset = open_dataset(s.dataset)
+    if s.key not in dataset:
+        raise ValueError(f"model {s.key!r} not in {s.dataset}; some keys: {list(dataset)[:8]}")
+    if s.viewspace not in dataset.viewspaces:
+        raise ValueError(f"viewspace {s.viewspace!r} not stored; have {sorted(dataset.viewspaces)}")
+    return s, dataset
+
+
+def finish(started: tuple[ShowSettings, Dataset]) -> None:
+    s, dataset = started
+    path = draw_model(dataset[s.key], dataset.intrinsics, s.viewspace, s.picture)
     log.info("wrote %s", path)
+
+
+main = command(PROG, "dataset_show", start, finish)
 
 
 if __name__ == "__main__":

@@ -29,6 +29,8 @@ from nbv.utils.bits import popcount, popcount_rows
 
 #: Coverage threshold: PC-NBV tests squared distance < 5e-5, i.e. Euclidean 0.00707.
 DEFAULT_EPS = 0.00707
+#: Ground-truth points sampled uniformly on each normalised mesh (PC-NBV's 16384).
+DEFAULT_N_GT = 16384
 
 
 def _as_view_state(view_state: np.ndarray, n_views: int) -> np.ndarray:

@@ -1,85 +1,160 @@
-"""The settings of ``python -m nbv.plan``: the schema of ``conf/plan.yaml`` and the settings built
-from it.
+"""The settings of ``python -m nbv.plan``: :class:`PlanSettings`, the one declaration of
+``conf/plan.yaml``'s keys (the hydra schema ``plan_schema`` is derived from it by
+:mod:`nbv.config.settings`).
 
-:class:`PlanConfig` is registered as ``plan_schema``, the first entry of the config's defaults
-list: hydra refuses an unknown key or a value of the wrong type while composing.
-:class:`PlanSettings` checks the rest before any work: exactly one input, a method that does not
-read the ground truth (the registry's ``ground_truth``), a valid viewspace spec, the object's
-centre and radius, ranges.
+Every key is checked before any work: its range (field metadata), then what spans keys (exactly
+one input, a method that does not read the ground truth, a start view of the viewspace, the
+saved captures). The object's sphere against the cameras' distance is checked where the sphere is
+known (:func:`nbv.plan.frame.object_frame`): it may come from the input.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from omegaconf import MISSING
-
-from nbv.config.schema import (
-    CameraConfig,
-    ConfigError,
-    PathsConfig,
-    ProtocolConfig,
-    check_views,
-    register,
-    schema_of,
-    validated,
-)
+from nbv.config.schema import CameraConfig, ConfigError, PathsConfig, ProtocolConfig, check_views
+from nbv.config.settings import Entry, check_ranges, setting
 from nbv.geometry.camera import Intrinsics
+from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT
 from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
-from nbv.policies.registry import METHODS, NETWORK_INPUTS
+from nbv.policies.episode import EPISODE_VIEWS
+from nbv.policies.registry import IG, METHODS, NETWORK_INPUTS
 
 #: The methods a user may plan with: those that do not read the ground truth.
 PLANNABLE = tuple(name for name, m in METHODS.items() if not m.ground_truth)
+_DISTANCE = "null or a positive distance"
+
+
+def _null_or_positive(value: float | None) -> bool:
+    return value is None or value > 0
+
+
+def _camera(camera: dict) -> Intrinsics:
+    """``camera: {width, height, focal}`` (``conf/camera/``) as the planner's intrinsics."""
+    return Intrinsics.centred(camera["width"], camera["height"], camera["focal"])
+
+
+@dataclass(frozen=True)
+class ViewspaceSettings(ViewspaceSpec):
+    """``viewspace:``, the candidate views: a :class:`ViewspaceSpec` and the cameras' distance.
+
+    Directions are in a Y-up frame turned so that +y is ``up`` (a turntable's axis).
+
+    Attributes:
+        kind: ``original`` (PC-NBV's 33 views), ``permuted`` (33 others), ``file`` (a text file of
+            ``x y z`` rows, directions), ``sphere`` / ``hemisphere`` (``n`` views of a Fibonacci
+            lattice; the hemisphere above the equator), ``rings`` (``per_ring`` views at each of
+            ``elevations``).
+        file: the text file of ``kind=file``.
+        n: views of ``sphere`` and ``hemisphere`` (an integer >= 2).
+        elevations: degrees of the rings of ``rings`` (90 is the top pole).
+        per_ring: views per ring of ``rings``: one count, or one per elevation.
+        up: the rig's up axis: ``x``, ``y``, ``z``, ``-x``, ``-y`` or ``-z``.
+        radius: the cameras' distance from the object's centre, world units; null = twice the
+            object's radius (the dataset's ratio).
+    """
+
+    radius: float | None = setting(None, check=_null_or_positive, allowed=_DISTANCE)
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
+        per_ring = self.per_ring
+        if not (isinstance(per_ring, int) or all(isinstance(x, int) for x in per_ring)):
+            raise ConfigError(
+                f"viewspace.per_ring={per_ring!r}: must be an integer or a list of them"
+            )
+        super().__post_init__()
+
+
+@dataclass(frozen=True)
+class ObjectSettings:
+    """``object:``, the object's sphere in world units.
+
+    Null keeps the input's: the mesh's (bounding-box centre, farthest vertex), else the captures'
+    ``views.json`` ``object``, else estimated from the captured points (the bounding box of what
+    was seen: give them when you know them).
+
+    Attributes:
+        center: ``[x, y, z]``, or null.
+        radius: a positive distance, or null.
+    """
+
+    center: tuple[float, float, float] | None = setting(
+        None, check=lambda c: c is None or len(c) == 3, allowed="[x, y, z] or null"
+    )
+    radius: float | None = setting(None, check=_null_or_positive, allowed=_DISTANCE)
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
 
 
 @dataclass(frozen=True)
 class PlanSettings:
-    """Everything one plan needs (see ``conf/plan.yaml`` for the meaning of each).
+    """Everything one plan needs (``conf/plan.yaml``).
 
     Attributes:
-        out_dir: the run folder (plan.json, plan.png, plan.html, cloud.ply, ...).
-        mesh: a mesh file to simulate captures of (exclusive with ``captures``).
-        captures: a capture folder (:mod:`nbv.plan.captures`).
-        method: a registered method of :data:`PLANNABLE`.
-        viewspace: the candidate directions.
-        distance: the cameras' distance from the object's centre, world units; None = twice
-            its radius.
-        center, radius: the object's sphere, world units; None = from the captures.
-        start_view: the mesh episode's first view.
-        n_views: views of an episode or a plan, the captured ones included.
-        camera: the planner's (and the mesh simulation's) camera.
-        match_degrees: a capture within this angle of a viewspace direction is that view.
-        save_captures: write the mesh episode's first this many views as a capture folder.
-        captures_out: where (None = ``<out_dir>/captures``).
-        checkpoint: a network method's weights (None = ``paths.checkpoints`` or the shipped).
+        mesh: the input, a mesh file (obj, ply, off, stl, glb, gltf; its units are the world's)
+            to simulate captures of: a whole episode. Exclusive with ``captures``.
+        captures: the input, a capture folder (``views.json`` and one file a view; the format is
+            in :mod:`nbv.plan.captures`): the next view, or a one-shot planner's whole plan.
+        method: a registered method that does not read the ground truth (:data:`PLANNABLE`).
+        checkpoint: the weights of a network method; null = ``paths.checkpoints.<method>``, and
+            when that file does not exist the weights the package ships.
+        viewspace: the candidate views (:class:`ViewspaceSettings`).
+        object: the object's sphere (:class:`ObjectSettings`).
+        start_view: mesh input: the episode's first view (an index of the viewspace).
+        n_views: views of an episode or a plan, the captured ones included (>= 2;
+            ``protocol.n_views``).
+        camera: the planner's (and the mesh simulation's) camera, ``conf/camera/``.
+        match_degrees: a capture within this many degrees (seen from the object's centre) of a
+            viewspace direction is that view; one farther off joins the plan as an extra
+            visited view. In [0, 90).
+        points_per_view: points kept of each view (a seeded random subset, as the dataset keeps
+            them); 0 keeps all (``protocol.points_per_view``).
+        eps: mesh input: coverage distance, normalised units (the object fits in radius 0.5;
+            ``protocol.eps``).
+        n_gt: mesh input: ground-truth points the coverage by view is measured on
+            (``protocol.n_gt``).
+        save_captures: mesh input: write the episode's first this many views as a capture
+            folder (depth NPY and ``views.json``); 0 writes none.
+        captures_out: where; null = ``<out_dir>/captures``. It must be new or empty.
+        hull: the convex-hull planners' settings (:class:`PlannerSettings`).
+        ig: the information-gain planners' settings (:class:`VolumetricSettings`).
+        seed: every random draw (random views, hull samples, point subsets, the mesh's ground
+            truth).
+        picture: draw ``plan.png`` (matplotlib).
+        page: write ``plan.html`` (plotly, self-contained).
+        out_dir: the run folder: ``plan.json``, ``plan.png``, ``plan.html``, ``cloud.ply`` (and
+            ``captures/`` with ``save_captures``), hydra's ``.hydra/`` and ``plan.log``.
     """
 
-    out_dir: Path
-    method: str
     mesh: Path | None = None
     captures: Path | None = None
-    viewspace: ViewspaceSpec = field(default_factory=ViewspaceSpec)
-    distance: float | None = None
-    center: tuple[float, float, float] | None = None
-    radius: float | None = None
-    start_view: int = 0
-    n_views: int = 10
-    camera: Intrinsics = field(default_factory=Intrinsics)
-    match_degrees: float = 2.0
-    points_per_view: int = 2048
-    eps: float = 0.00707
-    n_gt: int = 16384
-    save_captures: int = 0
-    captures_out: Path | None = None
-    hull: PlannerSettings = field(default_factory=PlannerSettings)
-    ig: VolumetricSettings = field(default_factory=VolumetricSettings)
+    method: str = IG.name
     checkpoint: Path | None = None
+    viewspace: ViewspaceSettings = setting(factory=ViewspaceSettings)
+    object: ObjectSettings = setting(factory=ObjectSettings)
+    start_view: int = setting(0, check=lambda v: v >= 0, allowed="an integer >= 0")
+    n_views: int = setting(EPISODE_VIEWS, check=lambda v: v >= 2, allowed="an integer >= 2")
+    camera: Intrinsics = setting(factory=Intrinsics, config=CameraConfig, convert=_camera)
+    match_degrees: float = setting(2.0, check=lambda v: 0 <= v < 90, allowed="degrees in [0, 90)")
+    points_per_view: int = setting(
+        2048, check=lambda v: v >= 0, allowed="an integer >= 0 (0 = all)"
+    )
+    eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
+    n_gt: int = setting(DEFAULT_N_GT, check=lambda v: v >= 1, allowed="an integer >= 1")
+    save_captures: int = setting(0, check=lambda v: v >= 0, allowed="an integer >= 0")
+    captures_out: Path | None = None
+    hull: PlannerSettings = setting(factory=PlannerSettings)
+    ig: VolumetricSettings = setting(factory=VolumetricSettings)
     seed: int = 0
     picture: bool = True
     page: bool = True
+    out_dir: Path = field(kw_only=True)
 
     def __post_init__(self) -> None:
         if (self.mesh is None) == (self.captures is None):
@@ -90,24 +165,7 @@ class PlanSettings:
         if self.method not in PLANNABLE:
             why = "reads the ground truth" if self.method in METHODS else "is not registered"
             raise ConfigError(f"method={self.method!r} {why}; allowed: {', '.join(PLANNABLE)}")
-        checks = [
-            ("n_views", self.n_views, self.n_views >= 2, "an integer >= 2"),
-            ("start_view", self.start_view, self.start_view >= 0, "an integer >= 0"),
-            ("viewspace.radius", self.distance, self.distance is None or self.distance > 0,
-             "null or a positive distance"),
-            ("object.radius", self.radius, self.radius is None or self.radius > 0,
-             "null or a positive distance"),
-            ("match_degrees", self.match_degrees, 0 <= self.match_degrees < 90,
-             "degrees in [0, 90)"),
-            ("points_per_view", self.points_per_view, self.points_per_view >= 0,
-             "an integer >= 0 (0 = all)"),
-            ("eps", self.eps, self.eps > 0, "a positive distance"),
-            ("n_gt", self.n_gt, self.n_gt >= 1, "an integer >= 1"),
-            ("save_captures", self.save_captures, self.save_captures >= 0, "an integer >= 0"),
-        ]  # fmt: skip
-        for key, value, ok, allowed in checks:
-            if not ok:
-                raise ConfigError(f"{key}={value!r}: must be {allowed}")
+        check_ranges(self)
         n_candidates = len(self.viewspace.directions())  # reads a viewspace file: refused now
         check_views("start_view", [self.start_view], self.viewspace.kind, n_candidates)
         if self.save_captures and self.mesh is None:
@@ -115,11 +173,6 @@ class PlanSettings:
         if self.save_captures > self.n_views:
             raise ConfigError(
                 f"save_captures={self.save_captures}: the episode has n_views={self.n_views}"
-            )
-        if self.distance is not None and self.radius is not None and self.distance <= self.radius:
-            raise ConfigError(
-                f"viewspace.radius={self.distance}: the cameras would sit inside the object's "
-                f"sphere (object.radius={self.radius})"
             )
         for key, path in (("mesh", self.mesh), ("captures", self.captures)):
             if path is not None and not Path(path).exists():
@@ -132,122 +185,23 @@ class PlanSettings:
             )
 
 
-#: ``hull:`` and ``ig:``: the fields of the planners' settings, each null (= the settings'
-#: default) unless given, so the planners' defaults are written once, in their settings.
-HullConfig = schema_of(PlannerSettings, "PlanHullConfig", optional=True)
-IGConfig = schema_of(VolumetricSettings, "PlanIGConfig", optional=True)
+class PlanEntry(Entry):
+    """``plan_schema``; :meth:`build` also names a network method's default checkpoint."""
+
+    def build(self, cfg: Any) -> PlanSettings:
+        """The settings of a composed ``conf/plan.yaml``; ``checkpoint=null`` of a network
+        method becomes ``paths.checkpoints.<method>`` (whether it exists is the registry's
+        business when the network is loaded: else the shipped weights)."""
+        settings = super().build(cfg)
+        if settings.checkpoint is None and settings.method in NETWORK_INPUTS:
+            default = cfg["paths"]["checkpoints"].get(settings.method)
+            if default:
+                settings = dataclasses.replace(settings, checkpoint=Path(default))
+        return settings
 
 
-@dataclass
-class ViewspaceConfig:
-    """``viewspace:`` (the fields of :class:`ViewspaceSpec`, and the cameras' distance)."""
-
-    kind: str = MISSING
-    file: str | None = MISSING
-    n: int = MISSING
-    elevations: list[float] = MISSING
-    per_ring: Any = MISSING
-    up: str = MISSING
-    radius: float | None = MISSING
-
-
-@dataclass
-class ObjectConfig:
-    """``object:``."""
-
-    center: list[float] | None = MISSING
-    radius: float | None = MISSING
-
-
-@dataclass
-class PlanConfig:
-    """``conf/plan.yaml``."""
-
-    mesh: str | None = MISSING
-    captures: str | None = MISSING
-    method: str = MISSING
-    out_dir: str = MISSING
-    viewspace: ViewspaceConfig = field(default_factory=ViewspaceConfig)
-    object: ObjectConfig = field(default_factory=ObjectConfig)
-    start_view: int = MISSING
-    n_views: int = MISSING
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    match_degrees: float = MISSING
-    points_per_view: int = MISSING
-    eps: float = MISSING
-    n_gt: int = MISSING
-    save_captures: int = MISSING
-    captures_out: str | None = MISSING
-    hull: HullConfig = field(default_factory=HullConfig)
-    ig: IGConfig = field(default_factory=IGConfig)
-    checkpoint: str | None = MISSING
-    seed: int = MISSING
-    picture: bool = MISSING
-    page: bool = MISSING
-    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
-    paths: PathsConfig = field(default_factory=PathsConfig)
-
-
-register("plan_schema", PlanConfig)
-
-
-def settings_from_config(cfg) -> PlanSettings:
-    """Build :class:`PlanSettings` from the composed hydra config of ``conf/plan.yaml``.
-
-    Raises:
-        ConfigError: an unknown key, a value of the wrong type or out of range, a bad viewspace
-            spec, a ground-truth method, a missing input (the message names the key).
-    """
-    c = validated(PlanConfig, cfg)
-    vs, obj, cam = c["viewspace"], c["object"], c["camera"]
-    per_ring = vs["per_ring"]
-    if isinstance(per_ring, list):
-        per_ring = tuple(per_ring)
-    if not (isinstance(per_ring, int) or all(isinstance(x, int) for x in per_ring)):
-        raise ConfigError(f"viewspace.per_ring={per_ring!r}: must be an integer or a list of them")
-    center = obj["center"]
-    if center is not None and len(center) != 3:
-        raise ConfigError(f"object.center={center}: must be [x, y, z] or null")
-    try:
-        spec = ViewspaceSpec(
-            kind=vs["kind"],
-            file=vs["file"],
-            n=vs["n"],
-            elevations=tuple(vs["elevations"]),
-            per_ring=per_ring,
-            up=vs["up"],
-        )
-        hull = PlannerSettings(**{k: v for k, v in c["hull"].items() if v is not None})
-        ig = VolumetricSettings(**{k: v for k, v in c["ig"].items() if v is not None})
-        camera = Intrinsics.centred(cam["width"], cam["height"], cam["focal"])
-    except ValueError as err:  # each names its key
-        raise ConfigError(str(err)) from None
-    checkpoint = c["checkpoint"]
-    method = c["method"]
-    if checkpoint is None and method in NETWORK_INPUTS:
-        checkpoint = c["paths"]["checkpoints"].get(method)
-    return PlanSettings(
-        out_dir=Path(c["out_dir"]),
-        method=method,
-        mesh=Path(c["mesh"]) if c["mesh"] else None,
-        captures=Path(c["captures"]) if c["captures"] else None,
-        viewspace=spec,
-        distance=vs["radius"],
-        center=tuple(center) if center is not None else None,
-        radius=obj["radius"],
-        start_view=c["start_view"],
-        n_views=c["n_views"],
-        camera=camera,
-        match_degrees=c["match_degrees"],
-        points_per_view=c["points_per_view"],
-        eps=c["eps"],
-        n_gt=c["n_gt"],
-        save_captures=c["save_captures"],
-        captures_out=Path(c["captures_out"]) if c["captures_out"] else None,
-        hull=hull,
-        ig=ig,
-        checkpoint=Path(checkpoint) if checkpoint else None,
-        seed=c["seed"],
-        picture=c["picture"],
-        page=c["page"],
-    )
+ENTRY = PlanEntry(
+    "plan_schema",
+    PlanSettings,
+    extra=(("protocol", ProtocolConfig), ("paths", PathsConfig)),
+)

@@ -14,12 +14,16 @@ intrinsics stay as they are.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from nbv.assets.meshes import NORMALISED_RADIUS
 from nbv.geometry.camera import viewspace_poses
 from nbv.geometry.viewspace_generators import up_rotation
+
+if TYPE_CHECKING:
+    from nbv.plan.config import PlanSettings
 
 
 @dataclass(frozen=True)
@@ -104,3 +108,25 @@ def candidate_poses(
     # None keeps exactly 1.0: the same poses as the dataset's, bit for bit, for the default.
     reach = 1.0 if distance is None else float(distance) * frame.scale
     return viewspace_poses(normalised * reach)
+
+
+def object_frame(settings: PlanSettings, center: np.ndarray, radius: float) -> ObjectFrame:
+    """The object's frame: the ``object`` settings' centre and radius where given, else the
+    input's ``center`` (3,) and ``radius`` (world units: the mesh's, the captures' or estimated).
+
+    Raises:
+        ValueError: the cameras (``viewspace.radius``) would sit inside the object's sphere.
+    """
+    given = settings.object
+    c = given.center if given.center is not None else center
+    r = given.radius if given.radius is not None else radius
+    frame = ObjectFrame(np.asarray(c, dtype=np.float64), float(r), settings.viewspace.up)
+    distance = settings.viewspace.radius
+    if distance is not None and distance <= frame.radius:
+        sphere = (f"object.radius={given.radius}" if given.radius is not None
+                  else f"radius {frame.radius:.4g}")  # fmt: skip
+        raise ValueError(
+            f"viewspace.radius={distance}: the cameras would sit inside the object's sphere "
+            f"({sphere})"
+        )
+    return frame

@@ -2,7 +2,7 @@
 
 The mesh is placed as the dataset normalises it (bounding-box centre, farthest vertex; or the
 ``object`` settings), every viewspace view is ray cast (:func:`nbv.render.raycast.render_raycast`)
-and turned into the dataset's view record (:func:`nbv.dataset.generate.view_data`), and
+and turned into the dataset's view record (:func:`nbv.dataset.views.view_data`), and
 :func:`nbv.policies.episode.run_episode` plays the episode from ``start_view``; coverage by view
 is measured against ``n_gt`` points sampled on the mesh. :func:`save_episode_captures` writes the
 first views as a capture folder (:mod:`nbv.plan.captures`), in the mesh's units.
@@ -16,21 +16,14 @@ from pathlib import Path
 import numpy as np
 
 from nbv.assets.meshes import Mesh, load_mesh, normalise, sample_surface
-from nbv.dataset.generate import view_data
 from nbv.dataset.records import ModelData
+from nbv.dataset.views import view_data
 from nbv.geometry.hull import QhullFailure, hull_volume
 from nbv.plan.captures import write_captures
 from nbv.plan.config import PlanSettings
-from nbv.plan.frame import candidate_poses
-from nbv.plan.policy import (
-    VIEWSPACE,
-    GainRecorder,
-    PlanResult,
-    method_context,
-    object_frame,
-    policy_rng,
-    stage_seconds,
-)
+from nbv.plan.frame import candidate_poses, object_frame
+from nbv.plan.method import GainRecorder, method_context, policy_rng, stage_seconds
+from nbv.plan.result import VIEWSPACE, PlanResult
 from nbv.policies.episode import run_episode
 from nbv.policies.registry import METHODS
 from nbv.render.raycast import render_raycast
@@ -50,7 +43,7 @@ def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
     _, center, scale = normalise(mesh)
     frame = object_frame(settings, center, 0.5 / scale)
     normalised_vertices = frame.points_to_normalised(mesh.vertices)
-    poses = candidate_poses(settings.viewspace.directions(), frame, settings.distance)
+    poses = candidate_poses(settings.viewspace.directions(), frame, settings.viewspace.radius)
     rng = named_rng(settings.seed, "plan", "mesh")
     normalised = Mesh(normalised_vertices, mesh.faces, mesh.source_path)
     gt = sample_surface(normalised, settings.n_gt, rng)
@@ -83,7 +76,7 @@ def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
         coverage=[float(c) for c in episode.coverage],
         decisions=recorder.seconds,
         stages=stage_seconds(policy),
-        notes=list(getattr(policy, "notes", [])) + episode.notes,
+        notes=list(policy.notes) + episode.notes,
         camera=settings.camera,
     ), depth
 

@@ -19,16 +19,9 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.plan.captures import Capture, CaptureError, check_views_see, estimate_object, read_captures
 from nbv.plan.config import PlanSettings
-from nbv.plan.frame import ObjectFrame, candidate_poses
-from nbv.plan.policy import (
-    VIEWSPACE,
-    PlanResult,
-    method_context,
-    object_frame,
-    policy_rng,
-    predicted_gains,
-    stage_seconds,
-)
+from nbv.plan.frame import ObjectFrame, candidate_poses, object_frame
+from nbv.plan.method import method_context, policy_rng, predicted_gains, stage_seconds
+from nbv.plan.result import VIEWSPACE, PlanResult
 from nbv.policies.episode import captured_state
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.utils.seeding import named_rng
@@ -67,7 +60,7 @@ def match_views(captured: np.ndarray, candidates: np.ndarray, degrees: float) ->
     return out
 
 
-def load_captureobject_frame(settings: PlanSettings) -> tuple[list[Capture], ObjectFrame, bool]:
+def load_captures_and_frame(settings: PlanSettings) -> tuple[list[Capture], ObjectFrame, bool]:
     """Read the captures and place the object: the settings' centre and radius, else the
     folder's ``object``, else estimated from the points; every view checked to look at it.
 
@@ -76,9 +69,10 @@ def load_captureobject_frame(settings: PlanSettings) -> tuple[list[Capture], Obj
     """
     captures, given = read_captures(settings.captures)
     est_center, est_radius = estimate_object(captures)
-    center = settings.center or (given["center"] if given else est_center)
-    radius = settings.radius or (given["radius"] if given else est_radius)
-    estimated = settings.center is None and settings.radius is None and given is None
+    obj = settings.object
+    center = obj.center or (given["center"] if given else est_center)
+    radius = obj.radius or (given["radius"] if given else est_radius)
+    estimated = obj.center is None and obj.radius is None and given is None
     if estimated:
         log.info("object estimated from the captures: centre %s, radius %.4g (a lower bound: "
                  "give object.center / object.radius when you know them)",
@@ -100,10 +94,10 @@ def planner_camera(captures: list[Capture], default: Intrinsics) -> Intrinsics:
 
 def plan_captures(settings: PlanSettings) -> PlanResult:
     """The next view (or a one-shot planner's remaining plan) from a folder of captures."""
-    captures, frame, estimated = load_captureobject_frame(settings)
+    captures, frame, estimated = load_captures_and_frame(settings)
     camera = planner_camera(captures, settings.camera)
     log.info("planner camera: %s", camera)
-    candidates = candidate_poses(settings.viewspace.directions(), frame, settings.distance)
+    candidates = candidate_poses(settings.viewspace.directions(), frame, settings.viewspace.radius)
     n = len(candidates)
     captured_poses = frame.poses_to_normalised(np.stack([c.pose for c in captures]))
     matched = match_views(captured_poses[:, :3, 3], candidates[:, :3, 3], settings.match_degrees)
@@ -143,7 +137,7 @@ def plan_captures(settings: PlanSettings) -> PlanResult:
         {"file": str(c.file), "view": int(m) if m is not None else None, "points": len(c.points)}
         for c, m in zip(captures, matched, strict=True)
     ]
-    notes = list(getattr(policy, "notes", []))
+    notes = list(policy.notes)
     if extras:
         notes.append(f"{len(extras)} captures off the viewspace joined the plan as extra views")
     return PlanResult(

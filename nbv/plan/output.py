@@ -24,8 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from nbv.geometry.camera import opencv_to_blender
+from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.plan.config import PlanSettings
-from nbv.plan.policy import VIEWSPACE, PlanResult
+from nbv.plan.result import VIEWSPACE, PlanResult
 from nbv.policies.episode import auc
 from nbv.utils.atomic import fsync_replace, write_text
 
@@ -55,6 +56,30 @@ def _jsonable(value):
     return value
 
 
+#: The order of ``plan.json``'s ``settings``, the one it has always had: the settings' keys, but
+#: the viewspace without its radius and, after it, the cameras' ``distance`` and the object's
+#: ``center`` and ``radius`` as keys of their own. A setting added later follows these.
+RECORD_ORDER = (
+    "out_dir", "method", "mesh", "captures", "viewspace", "distance", "center", "radius",
+    "start_view", "n_views", "camera", "match_degrees", "points_per_view", "eps", "n_gt",
+    "save_captures", "captures_out", "hull", "ig", "checkpoint", "seed", "picture", "page",
+)  # fmt: skip
+
+
+def settings_record(settings: PlanSettings) -> dict:
+    """``plan.json``'s ``settings``: every setting as JSON, in :data:`RECORD_ORDER`."""
+    flat = {f.name: getattr(settings, f.name) for f in dataclasses.fields(settings)}
+    vs, obj = flat.pop("viewspace"), flat.pop("object")
+    flat |= {
+        "viewspace": {f.name: getattr(vs, f.name) for f in dataclasses.fields(ViewspaceSpec)},
+        "distance": vs.radius,
+        "center": obj.center,
+        "radius": obj.radius,
+    }
+    order = [*RECORD_ORDER, *(key for key in flat if key not in RECORD_ORDER)]
+    return {key: _jsonable(flat[key]) for key in order}
+
+
 def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
     """The content of ``plan.json`` (see the module docstring)."""
     world = result.frame.poses_to_world(result.model.views[VIEWSPACE].poses)
@@ -82,7 +107,7 @@ def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
         "timings": {"decisions": result.decisions, "stages": result.stages},
         "notes": result.notes,
         "candidates": [_pose_entry(v, world[v]) for v in range(result.n_candidates)],
-        "settings": _jsonable(settings),
+        "settings": settings_record(settings),
     }  # fmt: skip
     return record
 

@@ -7,6 +7,7 @@ from scipy.spatial import ConvexHull
 
 from nbv.geometry.camera import Intrinsics, backproject
 from nbv.geometry.clouds import as_cloud
+from nbv.geometry.raycast import raycast_depth
 from nbv.geometry.scores import DEFAULT_EPS, covered_mask
 from nbv.planning.dilation import dilate_view_sets, near_triangles
 from nbv.planning.settings import SIMULATIONS
@@ -31,7 +32,7 @@ def raycast_view_sets(
 ) -> np.ndarray:
     """Which hull samples each view captures, by rendering the hull like the dataset does.
 
-    Each view's depth (:func:`nbv.render.raycast.render_raycast`, one ray a pixel centre) is
+    Each view's depth (:func:`nbv.geometry.raycast.raycast_depth`, one ray a pixel centre) is
     back-projected to a cloud; a sample is captured when a point of that cloud lies closer than
     ``eps`` (:func:`nbv.geometry.scores.covered_mask`). ``eps`` must exceed about half the distance
     between neighbouring pixels' points on the surface, or frontal faces get holes: at 640 x 480,
@@ -47,12 +48,10 @@ def raycast_view_sets(
     Returns:
         ``(V, n)`` bool.
     """
-    from nbv.render.raycast import render_raycast  # Open3D is heavy; only this path needs it
-
     samples = as_cloud(samples, "samples")
     poses = as_poses(poses)
     vertices, faces = _hull_mesh(hull)
-    depth = render_raycast(vertices, faces, poses, intrinsics)
+    depth = raycast_depth(vertices, faces, poses, intrinsics)
     sets = np.zeros((len(poses), len(samples)), dtype=bool)
     for v, pose in enumerate(poses):
         sets[v] = covered_mask(backproject(depth[v], intrinsics, pose), samples, eps)

@@ -6,6 +6,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# Mesh validation lives with the ray casting; the Blender driver checks its meshes the same way.
+from nbv.geometry.raycast import check_mesh
+
+__all__ = ["BACKENDS", "DEVICES", "RenderError", "RenderJob", "check_mesh"]
+
 BACKENDS = ("blender", "raycast")
 
 
@@ -32,16 +37,3 @@ class RenderJob:
     vertices: np.ndarray
     faces: np.ndarray
     poses: np.ndarray
-
-
-def check_mesh(vertices: np.ndarray, faces: np.ndarray, poses: np.ndarray) -> None:
-    if vertices.ndim != 2 or vertices.shape[1] != 3:
-        raise ValueError(f"vertices must be (N, 3), got shape {vertices.shape}")
-    if faces.ndim != 2 or faces.shape[1] != 3 or not np.issubdtype(faces.dtype, np.integer):
-        raise ValueError(f"faces must be integer (F, 3), got {faces.dtype} {faces.shape}")
-    if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
-        raise ValueError(
-            f"face indices must lie in [0, {len(vertices)}), got [{faces.min()}, {faces.max()}]"
-        )
-    if poses.ndim != 3 or poses.shape[1:] != (4, 4):
-        raise ValueError(f"poses must be (V, 4, 4), got shape {poses.shape}")

@@ -1,5 +1,5 @@
-"""``python -m nbv.synthetic --preview out.png``: the contact sheet of the synthetic shapes.
+"""``python -m nbv.synthetic preview=out.png``: the contact sheet of the synthetic shapes.
 
-The shapes live in :mod:`nbv.assets.synthetic`; this package only keeps the command's name
-(see :func:`nbv.assets.synthetic.preview.main` for its options).
+The shapes and the drawing live in :mod:`nbv.assets.synthetic`; this package holds the command:
+its settings (:mod:`nbv.synthetic.config`, ``conf/synthetic.yaml``) and its main.
 """

@@ -18,7 +18,7 @@ scaled so that the bounding-box diagonal is 1, so it fits in a sphere of radius 
 * :func:`make_model` builds one model of a category from a ``numpy.random.Generator``.
 * :func:`catalogue` lists the models of the default dataset (:data:`DEFAULT_COUNTS`);
   :func:`build` makes one of them from a seed, independently of every other model.
-* :func:`preview` draws a contact sheet (``python -m nbv.synthetic --preview out.png``).
+* :func:`preview` draws a contact sheet (``python -m nbv.synthetic preview=out.png``).
 
 Modules, imports going one way (each imports only the ones above it):
 
@@ -30,7 +30,7 @@ Modules, imports going one way (each imports only the ones above it):
   :mod:`~nbv.assets.synthetic.objects` (lamp, guitar, pistol);
 * :mod:`~nbv.assets.synthetic.catalogue`: the category -> builder table, :func:`make_model`, the
   catalogue, the per-model generators and :func:`build`;
-* :mod:`~nbv.assets.synthetic.preview`: the contact sheet and the command line.
+* :mod:`~nbv.assets.synthetic.preview`: the contact sheet.
 """
 
 from nbv.assets.synthetic.catalogue import (
@@ -42,7 +42,7 @@ from nbv.assets.synthetic.catalogue import (
     make_model,
     model_rng,
 )
-from nbv.assets.synthetic.preview import main, preview, render_tile
+from nbv.assets.synthetic.preview import preview, render_tile
 
 __all__ = [
     "DEFAULT_COUNTS",
@@ -50,7 +50,6 @@ __all__ = [
     "SyntheticEntry",
     "build",
     "catalogue",
-    "main",
     "make_model",
     "model_rng",
     "preview",

@@ -1,23 +1,18 @@
-"""A contact sheet of the synthetic shapes, drawn by Open3D ray casting, and its command line.
+"""A contact sheet of the synthetic shapes, drawn by Open3D ray casting.
 
-``python -m nbv.synthetic --preview out.png [--seed S] [--per-category K] [--tile T]`` (or
-``make preview``) writes one row per category (training ones blue, unseen ones orange).
+``python -m nbv.synthetic preview=out.png [seed=S] [per_category=K] [tile=T]`` (or ``make
+preview``, :mod:`nbv.synthetic`) writes one row per category (training ones blue, unseen ones
+orange).
 """
 
 from __future__ import annotations
 
-import argparse
-import logging
-import time
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from nbv.assets.categories import CATEGORIES, TRAIN_CATEGORIES
 from nbv.assets.synthetic.catalogue import make_model, model_rng
-
-log = logging.getLogger(__name__)
 
 _TINTS = {"train": (0.55, 0.7, 0.95), "unseen": (0.98, 0.72, 0.45)}
 
@@ -124,23 +119,3 @@ def preview(
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     sheet.save(path)
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``python -m nbv.synthetic --preview out.png [--seed S] [--per-category K]``."""
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    parser = argparse.ArgumentParser(
-        prog="python -m nbv.synthetic",
-        description="Procedural ShapeNet stand-ins: draw a contact sheet of the 16 categories.",
-    )
-    parser.add_argument("--preview", type=Path, required=True, help="PNG file to write")
-    parser.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
-    parser.add_argument("--per-category", type=int, default=4, help="models per row (default 4)")
-    parser.add_argument("--tile", type=int, default=160, help="tile size in pixels (default 160)")
-    args = parser.parse_args(argv)
-    if args.seed < 0 or args.per_category < 1 or args.tile < 8:
-        parser.error("--seed must be >= 0, --per-category >= 1 and --tile >= 8")
-    start = time.perf_counter()
-    preview(args.preview, seed=args.seed, per_category=args.per_category, tile=args.tile)
-    log.info("wrote %s in %.1f s", args.preview, time.perf_counter() - start)
-    return 0

@@ -1,0 +1,195 @@
+"""The settings of dataset generation (:func:`nbv.dataset.generate.generate`), nested like
+``conf/dataset.yaml``: :class:`GenerationSettings` with its groups :class:`Synthetic`,
+:class:`Renderer` and :class:`Noise`.
+
+These are the library's settings: code makes them directly (tests, the evaluator's prepared
+meshes), and ``python -m nbv.dataset`` builds them from its YAML (:mod:`nbv.dataset.config` adds
+the YAML form of the camera and the ``samples:`` group). Each field is declared here once, with
+its default and allowed range (:func:`nbv.utils.fields.setting`); a bad value raises
+:class:`~nbv.utils.fields.ConfigError` naming its key path, from code as from a config.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from nbv.dataset.schema import SCHEMA_VERSION
+from nbv.dataset.sources import SOURCES
+from nbv.geometry.camera import Intrinsics
+from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT
+from nbv.render.job import BACKENDS
+from nbv.render.noise import DepthNoise
+from nbv.utils.fields import ConfigError, check, check_ranges, fields_of, setting
+
+__all__ = ["BACKENDS", "GenerationSettings", "Noise", "Renderer", "Synthetic"]
+
+
+def _one_of(names: tuple[str, ...]) -> dict:
+    return dict(check=lambda v: v in names, allowed=f"one of {', '.join(names)}")
+
+
+def _at_least(low: int) -> dict:
+    return dict(check=lambda v: v >= low, allowed=f"an integer >= {low}")
+
+
+@dataclass(frozen=True)
+class Synthetic:
+    """``synthetic:``: the synthetic source's size.
+
+    Attributes:
+        counts: models per split for each training category (keys ``train``, ``valid``,
+            ``test``) and per unseen category (``unseen``); missing keys (or null) take
+            :data:`nbv.assets.synthetic.DEFAULT_COUNTS`. Synthetic source only.
+    """
+
+    counts: dict[str, int] | None = None
+
+
+@dataclass(frozen=True)
+class Noise(DepthNoise):
+    """``renderer.noise:``: a depth-sensor model applied to every rendered view, off by default.
+
+    The fields of :class:`nbv.render.noise.DepthNoise` (checked even when off), and:
+
+    Attributes:
+        a, b, z0: the axial noise's constant and quadratic terms (world units, read as metres):
+            sigma = a + b (z - z0)^2 + c / sqrt(z) * t^2 / (pi/2 - t)^2, z the planar depth, t the
+            incidence angle (Nguyen et al. 2012's Kinect fit).
+        c: the angle-dependent term's scale (0 turns it off).
+        dropout_start: incidence angle, degrees, where dropout begins: a pixel is lost with
+            probability rising from 0 there to 1 at 90 (silhouette pixels count as grazing).
+        max_angle: incidence angle, degrees, where the angular term is capped.
+        enabled: apply the model (seeded by ``seed`` and the model).
+    """
+
+    enabled: bool = False
+
+    @property
+    def model(self) -> DepthNoise | None:
+        """The sensor model when enabled, else None."""
+        if not self.enabled:
+            return None
+        return DepthNoise(**{f.name: getattr(self, f.name) for f in fields_of(DepthNoise)})
+
+
+@dataclass(frozen=True)
+class Renderer:
+    """``renderer:``: how depth images are made.
+
+    Attributes:
+        backend: ``blender`` (Cycles, the reference) or ``raycast`` (Open3D Embree, 3-4x faster
+            here, the same camera model).
+        blender: path (or command on the PATH) of a Blender 3.4-5.0 binary, checked once by a
+            tiny render before any model (:mod:`nbv.render.preflight`); null = the bpy module
+            of this environment.
+        threads: render threads (0 = all cores).
+        device: Blender's device: ``CPU``, ``GPU`` or ``AUTO``.
+        chunk: meshes per Blender process; bounds the temporary disk and memory of one batch.
+        noise: the depth-sensor model (:class:`Noise`).
+    """
+
+    backend: str = setting("blender", **_one_of(BACKENDS))
+    blender: str | None = None
+    threads: int = 0
+    device: str = "CPU"
+    chunk: int = setting(16, **_at_least(1))
+    noise: Noise = field(default_factory=Noise)
+
+
+@dataclass(frozen=True)
+class GenerationSettings:
+    """Everything :func:`nbv.dataset.generate.generate` needs (``conf/dataset.yaml``'s keys but
+    ``samples:``).
+
+    Attributes:
+        source: where meshes come from: ``synthetic``, ``shapenet``, ``stanford``, ``linemod``,
+            ``homebrew`` or ``folder``.
+        root: folder of the source's meshes (every source but synthetic).
+        categories: ShapeNet only: category names or synset ids; null = the 8 training and 8
+            unseen categories (those the folder holds); ``[all]`` = every synset folder.
+        synthetic: the synthetic source's size (:class:`Synthetic`).
+        split_fractions: real sources: fractions of each training category's models that go to
+            ``valid`` and ``test``.
+        seed: every random choice (synthetic shapes, ground truth, subsampling, splits) derives
+            from it.
+        out_dir: output folder: one HDF5 file per shard, ``shard-SSSSS-of-NNNNN.h5``.
+        shard: this process renders the models ``i`` with ``i % num_shards == shard`` (one SLURM
+            array task per shard); in ``0 .. num_shards - 1``.
+        num_shards: the number of shards (>= 1).
+        limit: stop after this many models of the shard; null = all.
+        viewspaces: name -> ``original``, ``permuted`` or the path of a viewspace text file
+            (rows ``x y z``); at least one.
+        intrinsics: the camera (YAML key ``camera``: ``conf/camera/``, ``camera=small`` for
+            smoke runs).
+        n_gt: ground-truth points sampled uniformly on each normalised mesh (>= 1).
+        eps: coverage distance, world units (> 0; objects fit in a sphere of radius 0.5).
+        points_per_view: points kept of each view, a seeded random subset (0 = all).
+        keep_depth: also keep the full-resolution depth images (half floats, compressed): about
+            10x larger files.
+        renderer: how depth images are made (:class:`Renderer`).
+        progress: show a progress bar.
+    """
+
+    source: str = setting("synthetic", **_one_of(SOURCES))
+    root: str | None = None
+    categories: tuple[str, ...] | None = None
+    synthetic: Synthetic = field(default_factory=Synthetic)
+    split_fractions: dict[str, float] = field(default_factory=dict)
+    seed: int = 0
+    out_dir: Path = field(kw_only=True)
+    shard: int = 0
+    num_shards: int = setting(1, **_at_least(1))
+    limit: int | None = setting(
+        None, check=lambda v: v is None or v >= 0, allowed="null or an integer >= 0"
+    )
+    viewspaces: dict[str, str] = setting(
+        factory=lambda: {"original": "original", "permuted": "permuted"},
+        check=lambda v: len(v) >= 1,
+        allowed="at least one name: viewspace entry",
+    )
+    intrinsics: Intrinsics = field(default_factory=Intrinsics.centred)
+    n_gt: int = setting(DEFAULT_N_GT, **_at_least(1))
+    eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
+    points_per_view: int = setting(
+        2048, check=lambda v: v >= 0, allowed="an integer >= 0 (0 = all)"
+    )
+    keep_depth: bool = False
+    renderer: Renderer = field(default_factory=Renderer)
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
+        if not 0 <= self.shard < self.num_shards:
+            raise ConfigError(f"shard={self.shard!r}: must be in 0..{self.num_shards - 1}")
+        # A group made in code is checked here, its keys named by their path as from a config.
+        for f in fields_of(Renderer):
+            check(f, getattr(self.renderer, f.name), "renderer.")
+
+    @property
+    def noise(self) -> DepthNoise | None:
+        """The depth-sensor model applied to every view, or None."""
+        return self.renderer.noise.model
+
+    def data_identity(self) -> dict:
+        """The settings that determine the arrays (must match to resume into a folder)."""
+        noise = self.noise
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "source": self.source,
+            "root": self.root,
+            "categories": list(self.categories) if self.categories else None,
+            "counts": self.synthetic.counts,
+            "split_fractions": self.split_fractions,
+            "seed": self.seed,
+            "num_shards": self.num_shards,
+            "viewspaces": self.viewspaces,
+            "camera": asdict(self.intrinsics),
+            "n_gt": self.n_gt,
+            "eps": self.eps,
+            "points_per_view": self.points_per_view,
+            "keep_depth": self.keep_depth,
+            "backend": self.renderer.backend,
+            # Only when on: datasets made before the option keep their identity.
+            **({"noise": asdict(noise)} if noise is not None else {}),
+        }

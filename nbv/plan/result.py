@@ -1,0 +1,61 @@
+"""What a plan found (:class:`PlanResult`), whatever its input.
+
+Both inputs become what the evaluator's policies read, a :class:`nbv.dataset.records.ModelData`
+of one viewspace (:data:`VIEWSPACE`), in the planners' normalised frame (:mod:`nbv.plan.frame`):
+the object's centre at the origin, its radius 0.5, the rig's up axis +y.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from nbv.dataset.records import ModelData
+from nbv.geometry.camera import Intrinsics
+from nbv.plan.frame import ObjectFrame
+
+#: The viewspace's name in the plan's record.
+VIEWSPACE = "plan"
+
+
+@dataclass
+class PlanResult:
+    """What one plan found, in the planners' normalised frame unless said otherwise.
+
+    Attributes:
+        frame: the object's frame (world <-> normalised).
+        model: the record the policy read (candidates first, then extra captured views).
+        n_candidates: V, the viewspace's views (indices ``0..V-1``).
+        visited: the captured views in order (candidate indices; extras ``>= V``).
+        chosen: the planned views in order (candidate indices).
+        gains: the planner's predicted gain of each chosen view (None when it predicts none),
+            and ``gain_unit`` what it counts.
+        coverage: mesh input: coverage of the ground truth after each view of the episode.
+        decisions: seconds of each policy call; ``stages`` the policy's own timings.
+        captured_files: captures input: each capture's file and its view index.
+        notes: what the policy or the input had to work around.
+        frame_estimated: the object's centre and radius were estimated from the captures.
+        camera: the planner's camera (its view simulation, ``ig``'s rays).
+    """
+
+    frame: ObjectFrame
+    model: ModelData
+    n_candidates: int
+    visited: list[int]
+    chosen: list[int]
+    gains: list[float] | None = None
+    gain_unit: str = ""
+    coverage: list[float] | None = None
+    decisions: list[float] = field(default_factory=list)
+    stages: dict[str, float] = field(default_factory=dict)
+    captured_files: list[dict] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    frame_estimated: bool = False
+    camera: Intrinsics | None = None
+
+    @property
+    def cloud(self) -> np.ndarray:
+        """(N, 3) float32 accumulated cloud of the visited views, normalised frame."""
+        view = self.model.views[VIEWSPACE]
+        return np.concatenate([view.view_points(v) for v in self.visited])

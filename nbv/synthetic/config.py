@@ -1,0 +1,40 @@
+"""The settings of ``python -m nbv.synthetic``: :class:`PreviewSettings`, the one declaration of
+``conf/synthetic.yaml``'s keys (the hydra schema ``synthetic_schema`` is derived from it)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from nbv.config.schema import PathsConfig
+from nbv.config.settings import Entry, check_ranges, setting
+
+
+def _at_least(low: int) -> dict:
+    return dict(check=lambda v: v >= low, allowed=f"an integer >= {low}")
+
+
+@dataclass(frozen=True)
+class PreviewSettings:
+    """The contact sheet of the synthetic shapes that ``python -m nbv.synthetic`` draws.
+
+    One row per category, ``per_category`` models of each (:func:`nbv.assets.synthetic.preview`).
+
+    Attributes:
+        preview: the PNG file to write (required).
+        seed: the dataset seed whose models are drawn (the models ``python -m nbv.dataset
+            seed=...`` makes).
+        per_category: models per row.
+        tile: the size of one model's picture, pixels.
+    """
+
+    preview: Path = field(kw_only=True)
+    seed: int = setting(0, **_at_least(0))
+    per_category: int = setting(4, **_at_least(1))
+    tile: int = setting(160, **_at_least(8))
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
+
+
+ENTRY = Entry("synthetic_schema", PreviewSettings, extra=(("paths", PathsConfig),))
