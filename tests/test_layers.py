@@ -18,6 +18,8 @@ HEAVY = ("h5py", "torch", "open3d", "bpy")
         "nbv.geometry.scores",
         "nbv.dataset.records",
         "nbv.planning.planner",
+        "nbv.planning.view_sets",
+        "nbv.geometry.raycast",
         "nbv.policies.episode",
         "nbv.policies.registry",
         "nbv.eval.protocol",
