@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import runpy
 import subprocess
 import sys
 from dataclasses import replace
@@ -19,7 +20,7 @@ from nbv.dataset.samples import SampleSet, load_samples
 from nbv.models.checkpoints import CheckpointError, load_checkpoint
 from nbv.models.precision import resolve_precision
 from nbv.policies.network import NetworkPolicy
-from train.config import TrainConfigError, TrainSettings
+from train.config import ModelSettings, ScoreSettings, TrainConfigError, TrainSettings
 from train.loop import run, split_samples
 from train.metrics import best_view_hits, spearman
 
@@ -31,13 +32,26 @@ def tiny_dataset(tmp_path_factory) -> Path:
     return make_train_dataset(tmp_path_factory.mktemp("train") / "data")
 
 
-def tiny_settings(dataset: Path, out: Path, **kw) -> TrainSettings:
+def tiny_settings(
+    dataset: Path,
+    out: Path,
+    score: str = "coverage",
+    input: str = "points",
+    net: dict = TINY_NET,
+    **kw,
+) -> TrainSettings:
+    """The tiny network's settings (``score``, ``input``, ``net``: the groups' keys)."""
     base = dict(
-        dataset=dataset, out_dir=out, fold=3, net=TINY_NET, epochs=2, batch_size=8,
-        train_points=32, eval_points=64, eval_every=1, start_views=(1, 30), progress=False,
+        dataset=dataset, out_dir=out, fold=3, epochs=2, batch_size=8, train_points=32,
+        eval_points=64, eval_every=1, start_views=(1, 30), progress=False,
+        score=ScoreSettings(score), model=ModelSettings("tiny", input, net),
     )  # fmt: skip
     base.update(kw)
     return TrainSettings(**base)
+
+
+#: The developer tool that ships weights (scripts/ship_weights.py).
+ship = runpy.run_path(str(ROOT / "scripts" / "ship_weights.py"))["ship"]
 
 
 def read_csv(path: Path) -> list[dict]:
@@ -46,8 +60,8 @@ def read_csv(path: Path) -> list[dict]:
 
 
 def test_spearman_by_model_ranks_each_models_samples_alone(tmp_path):
-    from train.loop import append_csv_rows
     from train.metrics import spearman_by_model
+    from train.records import append_csv_rows
 
     state = np.zeros((3, 4), bool)
     target = np.array([[1.0, 2, 3, 4], [1, 2, 3, 4], [4, 3, 2, 1]])
@@ -209,8 +223,6 @@ def test_training_on_every_category_writes_no_heldout_score(tiny_dataset, tmp_pa
 
 
 def test_a_pcnbv_checkpoint_ships_in_bfloat16_with_its_provenance(tiny_dataset, tmp_path):
-    from train.ship import ship
-
     run(tiny_settings(tiny_dataset, tmp_path / "run", fold=-1, epochs=1))
     provenance = ship(tmp_path / "run" / "best.pt", tmp_path / "pcnbv.pt", "python -m x",
                       tiny_dataset)  # fmt: skip
@@ -274,7 +286,8 @@ def test_training_loss_drops_and_bf16_picks_as_fp32(tiny_dataset, tmp_path):
     [
         (dict(fold=8), "fold=8"),
         (dict(fold=-2), "fold=-2.*or -1"),
-        (dict(score="loud"), "score"),
+        (dict(score="loud"), r"score.name='loud': must be one of coverage, vig"),
+        (dict(input="cloud"), r"model.input='cloud': must be one of points, signature"),
         (dict(device="tpu"), "device"),
         (dict(precision="fp16"), "precision"),
     ],

@@ -2,9 +2,9 @@
 
 The 8-fold sweep: ``python -m train -m fold=0,1,2,3,4,5,6,7 score=coverage,vig
 model=pcnbv,pcnbv_sph`` (add ``hydra/launcher=slurm`` to run it as a SLURM job array). Settings:
-``conf/train.yaml`` (schema: :mod:`train.config`). The final metrics go to stdout as JSON; a
-refused setting ends with one line on stderr and exit status 2, and leaves no run folder behind
-(:mod:`nbv.config.cli`).
+``conf/train.yaml`` (declared by :class:`train.config.TrainSettings`). The final metrics go to
+stdout as JSON; a refused setting, a missing input or a run that cannot resume ends with one line
+on stderr and exit status 2, and leaves no run folder behind (:mod:`nbv.config.cli`).
 """
 
 import dataclasses
@@ -12,13 +12,11 @@ import json
 import logging
 from pathlib import Path
 
-import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
-from omegaconf import DictConfig
 
-from nbv.config.cli import entry_point, refuse
-from train.config import settings_from_config
+from nbv.config.cli import command
+from train.config import ENTRY, TrainSettings
 
 PROG = "train"
 #: Written into hydra's job folder before training: where the run folder is (train.summary).
@@ -28,32 +26,37 @@ RUN_FILE = "run.json"
 log = logging.getLogger("train")
 
 
-@hydra.main(config_path="../conf", config_name="train", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    try:
-        settings = settings_from_config(cfg)
-        hc = HydraConfig.get()
-        job_dir = Path(hc.runtime.output_dir)
-        given = any(o.split("=", 1)[0].lstrip("+~") == "out_dir" for o in hc.overrides.task)
-        if hc.mode == RunMode.MULTIRUN and not given:
-            # The default out_dir has no time in it: two sweeps would resume each other's runs.
-            settings = dataclasses.replace(settings, out_dir=job_dir)
-        # torch loads only for a run that goes ahead: a refused one answers at once.
-        from train.loop import run
+def start(cfg) -> tuple[TrainSettings, dict]:
+    """The settings, then the training itself: what stops it before it has written anything
+    (bad settings, missing samples, unusable checkpoints, a run that cannot resume) raises
+    ValueError and refuses the run."""
+    settings = ENTRY.build(cfg)
+    hc = HydraConfig.get()
+    job_dir = Path(hc.runtime.output_dir)
+    given = any(o.split("=", 1)[0].lstrip("+~") == "out_dir" for o in hc.overrides.task)
+    if hc.mode == RunMode.MULTIRUN and not given:
+        # The default out_dir has no time in it: two sweeps would resume each other's runs.
+        settings = dataclasses.replace(settings, out_dir=job_dir)
+    # torch loads only for a run that goes ahead: a refused one answers at once.
+    from train.loop import run
 
-        # Point hydra's job folder at the run folder, so `train.summary <sweep dir>` finds it.
-        job_dir.mkdir(parents=True, exist_ok=True)
-        out_dir = str(settings.out_dir.resolve())
-        (job_dir / RUN_FILE).write_text(json.dumps({"out_dir": out_dir}))
-        result = run(settings)
-    except ValueError as err:  # bad settings, missing samples, unusable checkpoints
-        refuse(PROG, err, scratch=(RUN_FILE,))
+    # Point hydra's job folder at the run folder, so `train.summary folder=<sweep dir>` finds it.
+    job_dir.mkdir(parents=True, exist_ok=True)
+    (job_dir / RUN_FILE).write_text(json.dumps({"out_dir": str(settings.out_dir.resolve())}))
+    return settings, run(settings)
+
+
+def finish(started: tuple[TrainSettings, dict]) -> None:
+    settings, result = started
     log.info(
         "fold %d (%s held out), %s on %s: done in %s",
-        settings.fold, settings.held_out, settings.model_name, settings.score, out_dir,
+        settings.fold, settings.held_out, settings.model.name, settings.score.name,
+        settings.out_dir.resolve(),
     )  # fmt: skip
     print(json.dumps({k: v for k, v in result.items() if k != "reference"}, indent=1))
 
 
+main = command(PROG, "train", start, finish, scratch=(RUN_FILE,))
+
 if __name__ == "__main__":
-    entry_point(PROG, main)
+    main()

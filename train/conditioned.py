@@ -35,25 +35,19 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
-import hydra
 import numpy as np
 import torch
-from omegaconf import MISSING, DictConfig
 
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES
-from nbv.config.cli import entry_point, refuse
-from nbv.config.schema import (
-    ConfigError,
-    PathsConfig,
-    ProtocolConfig,
-    register,
-    schema_of,
-    validated,
-)
+from nbv.config.cli import command
+from nbv.config.schema import ConfigError, PathsConfig, ProtocolConfig, schema_of
+from nbv.config.settings import Entry, check_ranges, setting
 from nbv.dataset.records import ModelData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import coverage_gains
@@ -71,61 +65,118 @@ from nbv.policies.conditioned import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.utils.selection import masked_argmax
-from train.loop import append_csv_rows
 from train.losses import LOSSES, batch_loss
 from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
+from train.records import append_csv_rows
+from train.subsets import subset
 
 log = logging.getLogger("train.conditioned")
 PROG = "train.conditioned"
 VIEWSPACES = ("original", "permuted")
 
 
+#: ``net``: the widths of :class:`ConditionedConfig` (each null: its default); the number of map
+#: features follows ``map_features``.
+NetFields = schema_of(ConditionedConfig, "NetFields", optional=True, exclude=("map_features",))
+
+
+def _at_least(default: int, low: int, allowed: str | None = None) -> Any:
+    """An integer field of at least ``low``."""
+    return setting(default, check=lambda v: v >= low, allowed=allowed or f"an integer >= {low}")
+
+
+def _widths(net: Mapping[str, Any]) -> dict[str, Any]:
+    """The ``net`` widths the YAML gives (lists as tuples); a null one keeps the default."""
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in net.items() if v is not None}
+
+
 @dataclass(frozen=True)
 class ConditionedSettings:
-    """See ``conf/train_conditioned.yaml`` for each."""
+    """Training of the viewspace-conditioned network (``python -m train.conditioned``).
+
+    Attributes:
+        dataset: a dataset folder with both viewspaces (``make dataset``).
+        out_dir: where ``best.pt``, ``last.pt``, ``metrics.csv`` and
+            ``val_spearman_by_model.csv`` go; rerunning resumes (more epochs extend the run).
+        seed: seeds the network's initialisation and every epoch's samples (with the epoch).
+        epochs: training epochs; each draws new samples.
+        trajectories: trajectories per training model and epoch, each on its own viewspace of
+            ``candidates`` directions drawn from the model's 66 stored views (both
+            viewspaces), turned by a random rotation about the up axis (and mirrored half the
+            time).
+        steps: samples per trajectory (one before each pick).
+        candidates: directions of a trajectory's viewspace.
+        random_step_prob: a trajectory takes a random unvisited view instead of the oracle's
+            with this probability.
+        batch_size: samples per step.
+        lr: Adam's learning rate (constant).
+        loss: ``squared``, ``normalised``, ``listwise`` or ``pairwise`` (:mod:`train.losses`).
+        train_points: points of a training cloud (a random subset of the visited views' stored
+            points).
+        eval_points: points of an evaluation cloud (farthest point sampled).
+        threads: torch's CPU threads; 0 = torch's choice.
+        max_models: train on this many of the training models (the categories in turn, a
+            seeded order in each; smaller sets are nested in larger ones): the learning curve's
+            sizes. 0 = all.
+        map_features: the head also reads each candidate's map features (what its rays would
+            see on ig's occupancy map of the visited views): the ``vcnbv_map`` variant. Give it
+            its own out_dir, e.g. ``out_dir=${paths.outputs}/train/vcnbv_map``.
+        start_views: the validation episodes' start views (``conf/protocol/``).
+        categories: the training categories (not a key: always
+            :data:`~nbv.assets.categories.TRAIN_CATEGORIES`; runs store it).
+        select_categories: training categories held out of training to choose the checkpoint
+            on, e.g. ``[cabinet,lamp]``: the validation models (AUC, Spearman, the choice of
+            best.pt) are then every model of these categories, which the network never sees,
+            instead of the valid split of all of them. ``[]`` = the valid split.
+        net: the network's widths (:class:`nbv.models.conditioned.ConditionedConfig`), e.g.
+            ``net.head_channels=[256,128]``; a null one keeps the default.
+    """
 
     dataset: Path
     out_dir: Path
     seed: int = 0
-    epochs: int = 6
-    trajectories: int = 12
-    steps: int = 9
-    candidates: int = 33
-    random_step_prob: float = 0.3
-    batch_size: int = 32
-    lr: float = 1e-3
-    loss: str = "listwise"
+    epochs: int = _at_least(6, 1)
+    trajectories: int = _at_least(12, 1)
+    steps: int = _at_least(9, 1)
+    candidates: int = _at_least(33, 2)
+    random_step_prob: float = setting(0.3, check=lambda v: 0 <= v <= 1, allowed="in [0, 1]")
+    batch_size: int = _at_least(32, 1)
+    lr: float = setting(1e-3, check=lambda v: v > 0, allowed="a positive number")
+    loss: str = setting(
+        "listwise", check=lambda v: v in LOSSES, allowed=f"one of {', '.join(LOSSES)}"
+    )
     train_points: int = 256
     eval_points: int = 256
     threads: int = 0
-    max_models: int = 0
+    max_models: int = _at_least(0, 0, "an integer >= 0 (0: every training model)")
     map_features: bool = False
     start_views: tuple[int, ...] = DEFAULT_START_VIEWS
-    categories: tuple[str, ...] = TRAIN_CATEGORIES
+    # Not a key (the schema has no such key): every run trains on the same categories.
+    categories: tuple[str, ...] = field(default=TRAIN_CATEGORIES, init=False)
     select_categories: tuple[str, ...] = ()
-    net: ConditionedConfig = field(default_factory=ConditionedConfig)
+    # The YAML's widths come as a mapping, made a ConditionedConfig in __post_init__: its own
+    # checks then name their key (net.head_channels=...) as they did.
+    net: ConditionedConfig = setting(
+        factory=ConditionedConfig, config=NetFields, convert=_widths, config_default={}
+    )
 
     def __post_init__(self) -> None:
-        checks = [
-            ("epochs", self.epochs >= 1, "an integer >= 1"),
-            ("trajectories", self.trajectories >= 1, "an integer >= 1"),
-            ("steps", self.steps >= 1, "an integer >= 1"),
-            ("candidates", self.candidates >= 2, "an integer >= 2"),
-            ("random_step_prob", 0 <= self.random_step_prob <= 1, "in [0, 1]"),
-            ("batch_size", self.batch_size >= 1, "an integer >= 1"),
-            ("lr", self.lr > 0, "a positive number"),
-            ("loss", self.loss in LOSSES, f"one of {', '.join(LOSSES)}"),
-            ("max_models", self.max_models >= 0, "an integer >= 0 (0: every training model)"),
-        ]
-        for key, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{key}={getattr(self, key)!r}: must be {allowed}")
+        if isinstance(self.net, Mapping):
+            object.__setattr__(self, "net", ConditionedConfig(**self.net))
+        check_ranges(self)
         chosen = set(self.select_categories)
         if not chosen <= set(self.categories) or chosen >= set(self.categories):
-            raise ValueError(
+            raise ConfigError(
                 f"select_categories={list(self.select_categories)}: must be some, not all, of "
                 f"the training categories {', '.join(self.categories)}"
             )
+
+
+ENTRY = Entry(
+    "train_conditioned_schema",
+    ConditionedSettings,
+    extra=(("protocol", ProtocolConfig), ("paths", PathsConfig)),
+)
 
 
 @dataclass(frozen=True)
@@ -222,25 +273,6 @@ def draw_samples(pools: list[_Pool], settings: ConditionedSettings, rng: np.rand
                 state[nxt] = True
                 order.append(int(nxt))
     return {k: np.stack(v) for k, v in out.items()}
-
-
-def subset(keys: list[str], categories: list[str], max_models: int, seed: int) -> list[str]:
-    """The first ``max_models`` of ``keys`` taking the categories in turn, each category's
-    models in an order seeded by ``seed`` (all of them for 0): a learning curve's smaller
-    training sets are nested and balanced."""
-    if not max_models or max_models >= len(keys):
-        return list(keys)
-    rng = np.random.default_rng([seed, 7])
-    queues = {c: [k for k, kc in zip(keys, categories, strict=True) if kc == c]
-              for c in sorted(set(categories))}  # fmt: skip
-    for c in queues:
-        queues[c] = [queues[c][i] for i in rng.permutation(len(queues[c]))]
-    out: list[str] = []
-    while len(out) < max_models:
-        for c in queues:
-            if queues[c] and len(out) < max_models:
-                out.append(queues[c].pop(0))
-    return out
 
 
 def _tensors(samples: dict, index: np.ndarray) -> list[torch.Tensor | None]:
@@ -422,55 +454,19 @@ def _same_run(saved: dict | None, wanted: dict) -> bool:
     return rest == wanted_rest and saved.get("epochs", 0) <= wanted["epochs"]
 
 
-NetFields = schema_of(ConditionedConfig, "NetFields", optional=True, exclude=("map_features",))
+def _start(cfg) -> tuple[ConditionedSettings, dict]:
+    """The settings, then the training: what stops it before it has written anything (bad
+    settings, too few models, a run folder of other settings) raises ValueError."""
+    settings = ENTRY.build(cfg)
+    return settings, run(settings)
 
 
-@dataclass
-class ConditionedTrainConfig(
-    schema_of(
-        ConditionedSettings,
-        "ConditionedFields",
-        exclude=("dataset", "out_dir", "categories", "net"),
-    )
-):
-    """The schema of ``conf/train_conditioned.yaml``: the fields of :class:`ConditionedSettings`
-    (but the training categories, which keep their defaults), paths as strings, the network's
-    widths (each null: :class:`ConditionedConfig`'s default) and the shared groups."""
-
-    dataset: str = MISSING
-    out_dir: str = MISSING
-    net: NetFields = field(default_factory=NetFields)  # type: ignore[valid-type]
-    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
-    paths: PathsConfig = field(default_factory=PathsConfig)
-
-
-register("train_conditioned_schema", ConditionedTrainConfig)
-
-
-def settings_from_config(cfg) -> ConditionedSettings:
-    """:class:`ConditionedSettings` from the composed config (``ConfigError`` names a bad key)."""
-    c = validated(ConditionedTrainConfig, cfg)
-    del c["protocol"], c["paths"]
-    c["dataset"], c["out_dir"] = Path(c["dataset"]), Path(c["out_dir"])
-    c["start_views"] = tuple(c["start_views"])
-    c["select_categories"] = tuple(c["select_categories"])
-    widths = {k: tuple(v) if isinstance(v, list) else v for k, v in c["net"].items()}
-    try:
-        c["net"] = ConditionedConfig(**{k: v for k, v in widths.items() if v is not None})
-        return ConditionedSettings(**c)
-    except ValueError as err:
-        raise ConfigError(str(err)) from None
-
-
-@hydra.main(config_path="../conf", config_name="train_conditioned", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    try:
-        settings = settings_from_config(cfg)
-        result = run(settings)
-    except ValueError as err:
-        refuse(PROG, err)
+def _finish(started: tuple[ConditionedSettings, dict]) -> None:
+    settings, result = started
     log.info("done: best mean validation AUC %.4f in %s", result["best_val_auc"], settings.out_dir)
 
 
+main = command(PROG, "train_conditioned", _start, _finish)
+
 if __name__ == "__main__":
-    entry_point(PROG, main)
+    main()

@@ -1,32 +1,29 @@
-"""The training settings: the schema of ``conf/train.yaml`` and the settings built from it.
+"""The settings of ``python -m train``: :class:`TrainSettings`, the one declaration of
+``conf/train.yaml``'s keys (the hydra schema ``train_schema`` is derived from it by
+:mod:`nbv.config.settings`; ``model.net`` holds the fields of
+:class:`nbv.models.config.PCNBVConfig`, but ``n_views``, which comes from the dataset).
 
-:class:`TrainConfig` is registered as ``train_schema``, the first entry of the config's defaults
-list: hydra refuses an unknown key or a value of the wrong type while composing. The ``model.net``
-keys are the fields of :class:`nbv.models.config.PCNBVConfig` (but ``n_views``, which comes from
-the dataset). :class:`TrainSettings` keeps the checks of ranges and of fields that go together.
+This module loads without torch, so that a refused run answers at once. Runs store their settings
+flat, as they always have (:func:`stored_settings`): checkpoints, ``settings.json`` and the run
+identity that resuming compares.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import json
 from dataclasses import dataclass, field
 from pathlib import Path
-
-from omegaconf import MISSING
+from typing import Any
 
 from nbv.assets.categories import TRAIN_CATEGORIES
-from nbv.config.schema import (
-    ConfigError,
-    PathsConfig,
-    ProtocolConfig,
-    check_views,
-    register,
-    schema_of,
-    validated,
-)
+from nbv.config.schema import ConfigError, PathsConfig, ProtocolConfig, check_views, schema_of
+from nbv.config.settings import Entry, check_ranges
 from nbv.dataset.reader import SHARD_GLOB
 from nbv.geometry.viewspace import get_viewspace
 from nbv.models.config import PRECISIONS, PCNBVConfig
 from nbv.policies.episode import DEFAULT_START_VIEWS
+from nbv.utils.fields import check, fields_of, setting
 
 SCORES = ("coverage", "vig")
 #: The training losses (:mod:`train.losses`), named here so that settings load without torch.
@@ -39,6 +36,24 @@ SELECTIONS = ("valid", "last")
 
 #: The error of a setting that cannot be used (one class for every entry point).
 TrainConfigError = ConfigError
+
+#: ``model.net``: the fields of PCNBVConfig; a null (or absent) one keeps PCNBVConfig's default.
+NetConfig = schema_of(PCNBVConfig, "NetConfig", optional=True, exclude=("n_views",))
+
+
+def _one_of(names: tuple[str, ...], default: str, hint: str = "") -> Any:
+    """A field that takes one of ``names``."""
+    return setting(default, check=lambda v: v in names, allowed=f"one of {', '.join(names)}{hint}")
+
+
+def _at_least(default: int, low: int, allowed: str | None = None) -> Any:
+    """An integer field of at least ``low``."""
+    return setting(default, check=lambda v: v >= low, allowed=allowed or f"an integer >= {low}")
+
+
+def _given(net: dict) -> dict:
+    """The ``model.net`` keys the YAML gives (a null one keeps PCNBVConfig's default)."""
+    return {k: v for k, v in net.items() if v is not None}
 
 
 def validation_views(dataset: Path) -> int:
@@ -57,67 +72,145 @@ def validation_views(dataset: Path) -> int:
 
 
 @dataclass(frozen=True)
+class ScoreSettings:
+    """``score``: the targets the network learns (the group ``conf/score/``).
+
+    Attributes:
+        name: ``coverage`` (the coverage each view would add, PC-NBV's) or ``vig`` (the
+            volumetric information gain, the convex-hull volume ratio each view would add).
+    """
+
+    name: str = _one_of(SCORES, "coverage", " (score=...)")
+
+
+@dataclass(frozen=True)
+class ModelSettings:
+    """``model``: the network (the group ``conf/model/``: pcnbv, pcnbv_sph, tiny).
+
+    Attributes:
+        name: the network's name (the run folder's and ``train.summary``'s).
+        input: ``points`` (the accumulated cloud, farthest point sampled) or ``signature`` (its
+            spherical-harmonics signature, 4 (lmax+1)^2 points).
+        net: the network's sizes, the fields of :class:`nbv.models.config.PCNBVConfig` but
+            ``n_views`` (the dataset's); a null or absent key keeps PCNBVConfig's default. Held
+            as the keys given, as checkpoints store them.
+    """
+
+    name: str = "pcnbv"
+    input: str = _one_of(INPUTS, "points")
+    net: dict = setting(factory=dict, config=NetConfig, convert=_given, config_default={})
+
+
+@dataclass(frozen=True)
 class TrainSettings:
-    """Everything one training run needs (see ``conf/train.yaml`` for the meaning of each)."""
+    """One leave-one-category-out training run (``python -m train``).
+
+    Fold k validates on the k-th training category of
+    :data:`nbv.assets.categories.TRAIN_CATEGORIES` (0 airplane, 1 cabinet, 2 car, 3 chair,
+    4 lamp, 5 sofa, 6 table, 7 vessel) and trains on the training split of the other seven.
+
+    Attributes:
+        dataset: a dataset folder made by ``make dataset`` (shards and samples files).
+        out_dir: where checkpoints (``last.pt``, ``best.pt``), ``metrics.csv``, ``heldout.json``
+            and TensorBoard logs go; rerunning resumes. In a sweep (``-m``) an out_dir not given
+            on the command line is the job's own folder, so two sweeps never share one.
+        fold: 0..7 as above; -1 holds no category out and trains on all eight (the weights
+            that ship: no held-out score, ``heldout.json`` is not written).
+        score: the targets (``score.name``).
+        model: the network (``model.name``, ``model.input``, ``model.net``).
+        seed: seeds the network's initialisation and every draw of an epoch (with the epoch).
+        epochs: training epochs. Four fit the 15-minute CPU budget of one fold on the default
+            dataset (2 cores); raise it on a GPU.
+        batch_size: samples per step.
+        lr: Adam's learning rate (the PyTorch port of PC-NBV: 1e-3, step decay 0.7 every 20
+            epochs).
+        lr_decay: the learning rate's factor every ``lr_step_epochs`` epochs.
+        lr_step_epochs: epochs between two decays of the learning rate.
+        l2: L2 penalty on the weights added to the loss.
+        train_points: points per training cloud (a seeded random subset of the stored 1024).
+        eval_points: points per evaluation cloud (farthest point sampled from the accumulated
+            cloud; the number the network was trained on).
+        precision: arithmetic of forward and backward passes: ``auto`` (bfloat16 autocast on
+            CPUs with AMX or AVX512-BF16 and on CUDA devices that support it, else fp32),
+            ``fp32`` or ``bf16``. The neighbour search and the fully connected head always run
+            in fp32.
+        eval_every: the validation reconstruction metric (coverage by view, AUC) every this many
+            epochs (and at the last), on the valid split of the fold's seven training
+            categories; the held-out category is scored once, at the end, with the chosen
+            checkpoint (``heldout.json``).
+        start_views: the validation episodes' start views (indices into the dataset's original
+            viewspace; ``conf/protocol/``).
+        device: ``auto`` (CUDA when present), ``cpu`` or ``cuda``.
+        threads: torch's CPU threads; 0 = torch's choice.
+        progress: show a progress bar.
+        select: the checkpoint kept as ``best.pt`` (the one evaluation and ``train.summary``
+            use): ``valid`` (best validation AUC on the valid split of the training categories)
+            or ``last`` (the last epoch).
+        resume: rerunning with the same out_dir continues from ``last.pt``; a changed setting,
+            dataset or samples file stops the run, naming the changed keys. false deletes the
+            run's files and starts afresh.
+        random_repeats: the held-out report averages the random baseline over this many seeds
+            per episode.
+        loss: ``squared`` (the paper's: squared error against the raw gains, summed over the V
+            outputs), ``normalised`` (the same on gains divided by the sample's largest),
+            ``listwise`` (softmax cross-entropy over the unvisited views against the gains
+            normalised to sum to 1) or ``pairwise`` (RankNet's logistic loss over pairs of
+            unvisited views); :mod:`train.losses`.
+        augment: map each training sample by a random exact symmetry of its viewspace (the
+            original 33 views have 16: 8 rotations about the up axis and their mirror images;
+            :mod:`train.augment`). A viewspace without symmetry trains unaugmented.
+        loader_workers: threads that build the next batches while the network steps (0 = built
+            in turn, the draws of the epoch's one generator; > 0: each batch its own generator,
+            the same for any count). On a GPU, 2-4 keep it fed.
+        pin_memory: pinned host tensors on CUDA (ignored on the CPU).
+        categories: the training categories (not a key: always
+            :data:`~nbv.assets.categories.TRAIN_CATEGORIES`; runs store it).
+    """
 
     dataset: Path
     out_dir: Path
-    fold: int = 0
-    score: str = "coverage"
-    model_name: str = "pcnbv"
-    input: str = "points"
-    net: dict = field(default_factory=dict)
+    fold: int = setting(
+        0,
+        check=lambda v: -1 <= v < len(TRAIN_CATEGORIES),
+        allowed=f"an integer in 0..{len(TRAIN_CATEGORIES) - 1} (the held-out category), or -1 "
+        "(none held out)",
+    )
+    score: ScoreSettings = setting(factory=ScoreSettings)
+    # The schema's default is the group schema's own (config_default={}): model.net's YAML form
+    # (NetConfig) is not the settings' dict.
+    model: ModelSettings = setting(factory=ModelSettings, config_default={})
     seed: int = 0
-    epochs: int = 4
-    batch_size: int = 32
-    lr: float = 1e-3
+    epochs: int = _at_least(4, 1)
+    batch_size: int = _at_least(32, 1)
+    lr: float = setting(1e-3, check=lambda v: v > 0, allowed="a positive number")
     lr_decay: float = 0.7
     lr_step_epochs: int = 20
     l2: float = 1e-4
-    train_points: int = 512
-    eval_points: int = 512
-    precision: str = "auto"
-    eval_every: int = 2
+    train_points: int = _at_least(512, 1)
+    eval_points: int = _at_least(512, 1)
+    precision: str = _one_of(PRECISIONS, "auto")
+    eval_every: int = _at_least(2, 1)
     start_views: tuple[int, ...] = DEFAULT_START_VIEWS
-    device: str = "auto"
+    device: str = _one_of(DEVICES, "auto")
     threads: int = 0
     progress: bool = True
-    select: str = "valid"
+    select: str = _one_of(SELECTIONS, "valid")
     resume: bool = True
-    random_repeats: int = 10
-    loss: str = "squared"
+    random_repeats: int = _at_least(10, 1)
+    loss: str = _one_of(LOSSES, "squared")
     augment: bool = True
-    loader_workers: int = 0
+    loader_workers: int = _at_least(0, 0)
     pin_memory: bool = True
-    categories: tuple[str, ...] = TRAIN_CATEGORIES
+    # Not a key (the schema has no such key): every run trains on the same categories.
+    categories: tuple[str, ...] = field(default=TRAIN_CATEGORIES, init=False)
 
     def __post_init__(self) -> None:
-        n = len(self.categories)
-        checks = [
-            (
-                "fold",
-                -1 <= self.fold < n,
-                f"an integer in 0..{n - 1} (the held-out category), or -1 (none held out)",
-            ),
-            ("score", self.score in SCORES, f"one of {', '.join(SCORES)} (score=...)"),
-            ("model.input", self.input in INPUTS, f"one of {', '.join(INPUTS)}"),
-            ("epochs", self.epochs >= 1, "an integer >= 1"),
-            ("batch_size", self.batch_size >= 1, "an integer >= 1"),
-            ("lr", self.lr > 0, "a positive number"),
-            ("train_points", self.train_points >= 1, "an integer >= 1"),
-            ("eval_points", self.eval_points >= 1, "an integer >= 1"),
-            ("eval_every", self.eval_every >= 1, "an integer >= 1"),
-            ("device", self.device in DEVICES, f"one of {', '.join(DEVICES)}"),
-            ("precision", self.precision in PRECISIONS, f"one of {', '.join(PRECISIONS)}"),
-            ("select", self.select in SELECTIONS, f"one of {', '.join(SELECTIONS)}"),
-            ("random_repeats", self.random_repeats >= 1, "an integer >= 1"),
-            ("loss", self.loss in LOSSES, f"one of {', '.join(LOSSES)}"),
-            ("loader_workers", self.loader_workers >= 0, "an integer >= 0"),
-        ]
-        for key, ok, allowed in checks:
-            if not ok:
-                value = getattr(self, key.split(".")[-1])
-                raise TrainConfigError(f"{key}={value!r}: must be {allowed}")
+        check_ranges(self)
+        # The groups' fields, named by their key path (a group's own object is not checked
+        # alone: its message would lose the path).
+        for group in ("score", "model"):
+            for f in fields_of(type(getattr(self, group))):
+                check(f, getattr(getattr(self, group), f.name), f"{group}.")
         check_views("start_views", self.start_views, "original", validation_views(self.dataset))
 
     @property
@@ -127,82 +220,22 @@ class TrainSettings:
         return None if self.fold == -1 else self.categories[self.fold]
 
 
-# The schema of conf/train.yaml: which keys exist and their types (the values are there).
-
-#: ``model.net``: the fields of PCNBVConfig; a null (or absent) one keeps PCNBVConfig's default.
-NetConfig = schema_of(PCNBVConfig, "NetConfig", optional=True, exclude=("n_views",))
-
-
-@dataclass
-class ModelConfig:
-    """``conf/model/``: the network's name, its input (``points`` or ``signature``), its sizes."""
-
-    name: str = MISSING
-    input: str = MISSING
-    net: NetConfig = field(default_factory=NetConfig)
+ENTRY = Entry(
+    "train_schema", TrainSettings, extra=(("protocol", ProtocolConfig), ("paths", PathsConfig))
+)
 
 
-@dataclass
-class ScoreConfig:
-    """``conf/score/``: the targets the network learns (``coverage`` or ``vig``)."""
-
-    name: str = MISSING
-
-
-@dataclass
-class TrainConfig:
-    """``conf/train.yaml``."""
-
-    dataset: str = MISSING
-    fold: int = MISSING
-    seed: int = MISSING
-    epochs: int = MISSING
-    batch_size: int = MISSING
-    lr: float = MISSING
-    lr_decay: float = MISSING
-    lr_step_epochs: int = MISSING
-    l2: float = MISSING
-    train_points: int = MISSING
-    eval_points: int = MISSING
-    precision: str = MISSING
-    eval_every: int = MISSING
-    start_views: list[int] = MISSING
-    device: str = MISSING
-    threads: int = MISSING
-    progress: bool = MISSING
-    select: str = MISSING
-    resume: bool = MISSING
-    random_repeats: int = MISSING
-    loss: str = MISSING
-    augment: bool = MISSING
-    loader_workers: int = MISSING
-    pin_memory: bool = MISSING
-    out_dir: str = MISSING
-    score: ScoreConfig = field(default_factory=ScoreConfig)
-    model: ModelConfig = field(default_factory=ModelConfig)
-    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
-    paths: PathsConfig = field(default_factory=PathsConfig)
-
-
-register("train_schema", TrainConfig)
-
-
-def settings_from_config(cfg) -> TrainSettings:
-    """Build :class:`TrainSettings` from the composed hydra config.
-
-    Raises:
-        ConfigError: an unknown key, a value of the wrong type or out of range (the message
-            names the key).
-    """
-    c = validated(TrainConfig, cfg)
-    model, score = c.pop("model"), c.pop("score")
-    del c["protocol"], c["paths"]
-    c["dataset"], c["out_dir"] = Path(c["dataset"]), Path(c["out_dir"])
-    c["start_views"] = tuple(c["start_views"])
-    return TrainSettings(
-        **c,
-        score=score["name"],
-        model_name=model["name"],
-        input=model["input"],
-        net={k: v for k, v in model["net"].items() if v is not None},
-    )
+def stored_settings(settings: TrainSettings) -> dict:
+    """The settings as a run stores them (checkpoints' ``settings``, ``settings.json``, the run
+    identity): JSON values, flat, the groups' keys as the runs made before the groups had them
+    (``score``, ``model_name``, ``input``, ``net``), so that those runs resume and read alike."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(settings):
+        value = getattr(settings, f.name)
+        if f.name == "score":
+            out["score"] = value.name
+        elif f.name == "model":
+            out.update(model_name=value.name, input=value.input, net=dict(value.net))
+        else:
+            out[f.name] = value
+    return json.loads(json.dumps(out, default=str))

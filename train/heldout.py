@@ -1,9 +1,10 @@
 """The held-out category, scored once, with the chosen checkpoint only.
 
 The fold's network (``best.pt``, chosen without the held-out category) plays an episode from every
-start view on every model of the held-out category; random (averaged over ``repeats`` seeds per
-episode), spread and the coverage oracle play the same episodes. ``heldout.json`` keeps every
-episode's AUC and coverage curve, so :mod:`train.summary` can pair the methods episode by episode.
+start view on every model of the held-out category; the registry's baselines (:data:`BASELINES`:
+random, averaged over ``repeats`` seeds per episode, spread and the coverage oracle) play the same
+episodes. ``heldout.json`` keeps every episode's AUC and coverage curve, so :mod:`train.summary`
+can pair the methods episode by episode.
 """
 
 from __future__ import annotations
@@ -11,14 +12,24 @@ from __future__ import annotations
 import numpy as np
 from tqdm import tqdm
 
-from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
-from nbv.policies.episode import run_episode
+from nbv.planning.settings import PlannerSettings
+from nbv.policies.episode import EPISODE_VIEWS, run_episode
+from nbv.policies.registry import METHODS, MethodContext
 from nbv.utils.seeding import named_rng
 
 #: The file in the run folder.
 HELDOUT_FILE = "heldout.json"
-#: The methods it holds, the network first.
-HELDOUT_METHODS = ("network", "random", "spread", "oracle")
+#: The methods the fold's network is compared with, in the registry's order: those that need no
+#: network and plan nothing (random, spread, the oracle).
+BASELINES = tuple(
+    m.name
+    for m in METHODS.values()
+    if m.network_input is None and not m.planner and not m.learned_score
+)
+#: The methods it holds, the fold's network (``network``) first.
+HELDOUT_METHODS = ("network", *BASELINES)
+#: The baseline whose seeds ``random_repeats`` counts (a stochastic one: its policy is random).
+_STOCHASTIC = tuple(name for name in BASELINES if METHODS[name].stochastic)
 
 
 def score_heldout(
@@ -48,6 +59,9 @@ def score_heldout(
         out["auc"][method].append(float(np.mean([e.auc for e in episodes])))
         out["coverage"][method].append(np.mean([e.coverage for e in episodes], axis=0).tolist())
 
+    # The baselines read none of the context but the camera: no network, no planner.
+    context = MethodContext({}, PlannerSettings(), dataset.intrinsics,
+                            float(dataset.attrs["eps"]), EPISODE_VIEWS)  # fmt: skip
     bar = tqdm(total=len(keys) * len(start_views), desc="held-out episodes", disable=not progress)
     for key in keys:
         model = dataset.model(key, ("original",))
@@ -56,13 +70,14 @@ def score_heldout(
             out["episodes"].append([key, start])
             out["categories"].append(model.category)
             record("network", [run_episode(model, "original", start, network.fresh())])
-            record("spread", [run_episode(model, "original", start, SpreadPolicy())])
-            record("oracle", [run_episode(model, "original", start, OraclePolicy("coverage"))])
-            record("random", [
-                run_episode(model, "original", start,
-                            RandomPolicy(named_rng(seed, "heldout-random", key, start, r)))
-                for r in range(repeats)
-            ])  # fmt: skip
+            for name in BASELINES:
+                # A stochastic baseline's seeds are named by its episode and repeat (the names
+                # runs made before this loop used: "heldout-random").
+                rngs = [named_rng(seed, f"heldout-{name}", key, start, r)
+                        for r in range(repeats if name in _STOCHASTIC else 1)]  # fmt: skip
+                build = METHODS[name].build
+                record(name, [run_episode(model, "original", start, build(context, rng))
+                              for rng in rngs])  # fmt: skip
             bar.update()
     bar.close()
     return out

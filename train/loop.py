@@ -22,12 +22,9 @@ uninterrupted one would.
 
 from __future__ import annotations
 
-import csv
-import hashlib
 import json
 import logging
 import time
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -44,9 +41,9 @@ from nbv.models.pcnbv import PCNBV
 from nbv.models.precision import autocast, flush_denormals, resolve_precision
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
-from nbv.utils.atomic import atomic_path, write_text
+from nbv.utils.atomic import write_text
 from train.augment import Augmentation
-from train.config import TrainSettings
+from train.config import TrainSettings, stored_settings
 from train.heldout import HELDOUT_FILE, score_heldout
 from train.losses import batch_loss
 from train.metrics import (
@@ -55,6 +52,7 @@ from train.metrics import (
     spearman,
     spearman_by_model,
 )
+from train.records import append_csv_rows, dataset_identity
 from train.resume import check_resumable, clear_run, file_digest, run_identity
 
 log = logging.getLogger(__name__)
@@ -67,13 +65,6 @@ def choose_device(name: str) -> torch.device:
     if name == "cuda" and not torch.cuda.is_available():
         raise ValueError("device=cuda: no CUDA device here; use device=auto or device=cpu")
     return torch.device(name)
-
-
-def dataset_identity(folder: Path) -> str:
-    """A short hash of a dataset's shard settings and model keys."""
-    ds = nbv.dataset.open(folder)
-    text = json.dumps([str(ds.attrs.get("config", "")), sorted(ds)], sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def split_samples(samples: SampleSet, settings: TrainSettings) -> tuple[SampleSet, SampleSet]:
@@ -125,7 +116,7 @@ def batch_inputs(
     an ``augmentation`` (and ``rng``) each sample is then mapped by a random symmetry of the
     viewspace.
     """
-    if settings.input == "signature":
+    if settings.model.input == "signature":
         points = samples.signature[index]
     else:
         points = samples.points[index]
@@ -138,7 +129,7 @@ def batch_inputs(
     view_state, target = samples.view_state[index], samples.target[index]
     if augmentation is not None and rng is not None:
         points, view_state, target = augmentation.apply(
-            points, view_state, target, rng, signature=settings.input == "signature"
+            points, view_state, target, rng, signature=settings.model.input == "signature"
         )
     return (
         torch.from_numpy(np.ascontiguousarray(points, dtype=np.float32)),
@@ -259,11 +250,6 @@ def _augmentation(settings: TrainSettings, dataset, samples: SampleSet, lmax: in
     return augmentation if len(augmentation) > 1 else None
 
 
-def _plain_settings(settings: TrainSettings) -> dict:
-    d = asdict(settings)
-    return json.loads(json.dumps(d, default=str))
-
-
 def run(settings: TrainSettings) -> dict:
     """Train one fold; returns the final metrics (see the module docstring).
 
@@ -283,7 +269,7 @@ def samples_identity(settings: TrainSettings) -> str:
 
 def _network_policy(model: PCNBV, settings: TrainSettings, lmax: int) -> NetworkPolicy:
     return NetworkPolicy(
-        for_inference(model, settings.precision), settings.input, settings.eval_points, lmax,
+        for_inference(model, settings.precision), settings.model.input, settings.eval_points, lmax,
         settings.precision,
     )  # fmt: skip
 
@@ -321,7 +307,7 @@ def _train(settings: TrainSettings) -> dict:
     if settings.threads:
         torch.set_num_threads(settings.threads)
     device = choose_device(settings.device)
-    samples = load_samples(settings.dataset, settings.score)
+    samples = load_samples(settings.dataset, settings.score.name)
     train, val = split_samples(samples, settings)
     dataset = nbv.dataset.open(settings.dataset)
     selection_keys, heldout_keys = fold_keys(dataset, settings)
@@ -337,7 +323,7 @@ def _train(settings: TrainSettings) -> dict:
     probe = train.select(np.sort(probe_rows))
 
     torch.manual_seed(settings.seed)
-    config = PCNBVConfig(n_views=n_views, **settings.net)
+    config = PCNBVConfig(n_views=n_views, **settings.model.net)
     model = PCNBV(config).to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
     scheduler = torch.optim.lr_scheduler.StepLR(
@@ -352,7 +338,7 @@ def _train(settings: TrainSettings) -> dict:
     first_epoch, best_auc = _resume(out_dir, identity, model, optimizer, scheduler)
     if first_epoch:
         log.info("resuming %s at epoch %d", out_dir, first_epoch + 1)
-    plain = {**_plain_settings(settings), "held_out": settings.held_out}
+    plain = {**stored_settings(settings), "held_out": settings.held_out}
     write_text(out_dir / "settings.json", json.dumps(plain, indent=1))
 
     from torch.utils.tensorboard import SummaryWriter
@@ -360,10 +346,10 @@ def _train(settings: TrainSettings) -> dict:
     writer = SummaryWriter(str(out_dir / "tb"))
     metrics_file = out_dir / "metrics.csv"
     extra_base = {
-        "settings": _plain_settings(settings),
+        "settings": stored_settings(settings),
         "run_identity": identity,
         "dataset_identity": identity["dataset_identity"],
-        "input": settings.input,
+        "input": settings.model.input,
         "lmax": lmax,
         "eval_points": settings.eval_points,
         # Resolved here: "auto" would be resolved again on the evaluating machine, maybe otherwise.
@@ -467,19 +453,3 @@ def _train(settings: TrainSettings) -> dict:
         "last": row,
         "heldout_auc": means,
     }
-
-
-def append_csv_rows(path: Path, new: list[dict]) -> None:
-    """Append one epoch's rows, each with the same ``epoch`` (replacing the rows of that epoch
-    and later ones, as a resumed run writes them again), rewriting the header when new columns
-    appear."""
-    rows = []
-    if path.exists():
-        with open(path, newline="") as handle:
-            rows = list(csv.DictReader(handle))
-    rows = [r for r in rows if int(r["epoch"]) < new[0]["epoch"]] + new
-    columns = list(dict.fromkeys(k for r in rows for k in r))
-    with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
-        writer = csv.DictWriter(handle, columns)
-        writer.writeheader()
-        writer.writerows(rows)

@@ -10,12 +10,10 @@ named, since continuing would mix two runs in one set of weights, metrics and op
 from __future__ import annotations
 
 import hashlib
-import json
 import shutil
-from dataclasses import asdict
 from pathlib import Path
 
-from train.config import TrainConfigError, TrainSettings
+from train.config import TrainConfigError, TrainSettings, stored_settings
 
 #: Settings that may differ on resumption: they do not change the numbers of the epochs run.
 #: (``epochs`` lets a finished run train on; ``random_repeats`` only affects heldout.json,
@@ -42,11 +40,10 @@ def run_identity(settings: TrainSettings, dataset_id: str, samples_id: str) -> d
 
     Args:
         settings: the run's settings.
-        dataset_id: :func:`train.loop.dataset_identity` of the dataset folder.
+        dataset_id: :func:`train.records.dataset_identity` of the dataset folder.
         samples_id: :func:`file_digest` of the samples files of the run's score.
     """
-    plain = json.loads(json.dumps(asdict(settings), default=str))
-    out = {k: v for k, v in plain.items() if k not in RESUMABLE}
+    out = {k: v for k, v in stored_settings(settings).items() if k not in RESUMABLE}
     out["dataset_identity"] = dataset_id
     out["samples_identity"] = samples_id
     return out

@@ -36,26 +36,26 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
-import hydra
 import numpy as np
 import torch
-from omegaconf import MISSING, DictConfig
 
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES
-from nbv.config.cli import entry_point, refuse
-from nbv.config.schema import PathsConfig, register, schema_of, validated
+from nbv.config.cli import command
+from nbv.config.schema import ConfigError, PathsConfig
+from nbv.config.settings import Entry, check_ranges, setting
 from nbv.dataset.records import ViewData, offsets_of, score_functions
 from nbv.planning.scorer import GainScorer, save_scorer
 from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, view_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.volumetric import InformationGainPolicy
-from train.conditioned import subset
-from train.loop import append_csv_rows, dataset_identity
 from train.losses import per_sample_loss
 from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
+from train.records import append_csv_rows, dataset_identity
+from train.subsets import subset
 
 log = logging.getLogger("train.scorer")
 PROG = "train.scorer"
@@ -63,45 +63,79 @@ VIEWSPACES = ("original", "permuted")
 DECISIONS = "decisions.npz"
 
 
+def _at_least(default: int, low: int, allowed: str | None = None) -> Any:
+    """An integer field of at least ``low``."""
+    return setting(default, check=lambda v: v >= low, allowed=allowed or f"an integer >= {low}")
+
+
+def _share(default: float) -> Any:
+    """A probability field."""
+    return setting(default, check=lambda v: 0 <= v <= 1, allowed="in [0, 1]")
+
+
 @dataclass(frozen=True)
 class ScorerSettings:
-    """See ``conf/train_scorer.yaml`` for each."""
+    """Training of ``ig_learned``'s score (``python -m train.scorer``).
+
+    Attributes:
+        dataset: a dataset folder with both viewspaces (``make dataset``).
+        out_dir: where ``scorer.json``, ``decisions.npz``, ``metrics.csv`` and
+            ``val_spearman_by_model.csv`` go.
+        seed: seeds the decisions, the network's initialisation and the epochs' order.
+        starts: episodes per model and viewspace (seeded random start views), each to
+            ``n_views`` views.
+        mixes: beside the original and permuted viewspaces, this many of 33 views drawn from
+            the model's 66 (new directions in the same elevation band, in a random order).
+        n_views: views per training episode, the start view included.
+        ig_step_prob: the next view of a training episode is ig's pick with this probability,
+            the oracle's with ``oracle_step_prob``, a random unvisited view otherwise.
+        oracle_step_prob: see ``ig_step_prob``; at most ``1 - ig_step_prob``.
+        hidden: units of each hidden layer of the perceptron.
+        epochs: training epochs.
+        batch_size: decisions per step.
+        lr: Adam's learning rate.
+        weight_by_gain: weigh each decision by its best true gain (as the AUC weighs it);
+            false: every decision alike.
+        workers: processes that make the decisions.
+        max_models: train on this many of the training models (the categories in turn, a
+            seeded order in each; smaller sets are nested in larger ones): the learning curve's
+            sizes. 0 = all.
+        categories: the training categories (not a key: always
+            :data:`~nbv.assets.categories.TRAIN_CATEGORIES`; ``scorer.json`` stores it).
+    """
 
     dataset: Path
     out_dir: Path
     seed: int = 0
-    starts: int = 8
-    mixes: int = 1
-    n_views: int = 10
-    ig_step_prob: float = 0.5
-    oracle_step_prob: float = 0.25
-    hidden: tuple[int, ...] = (32, 32)
-    epochs: int = 30
-    batch_size: int = 256
-    lr: float = 1e-3
+    starts: int = _at_least(8, 1)
+    mixes: int = _at_least(1, 0)
+    n_views: int = _at_least(10, 2)
+    ig_step_prob: float = _share(0.5)
+    # Its upper bound depends on ig_step_prob: checked in __post_init__, with the same words.
+    oracle_step_prob: float = setting(
+        0.25, check=lambda v: v >= 0, allowed="in [0, 1 - ig_step_prob]"
+    )
+    hidden: tuple[int, ...] = setting(
+        (32, 32), check=lambda v: all(h >= 1 for h in v), allowed="a list of integers >= 1"
+    )
+    epochs: int = _at_least(30, 1)
+    batch_size: int = _at_least(256, 1)
+    lr: float = setting(1e-3, check=lambda v: v > 0, allowed="a positive number")
     weight_by_gain: bool = True
-    workers: int = 2
-    max_models: int = 0
-    categories: tuple[str, ...] = TRAIN_CATEGORIES
+    workers: int = _at_least(2, 1)
+    max_models: int = _at_least(0, 0, "an integer >= 0 (0: every training model)")
+    # Not a key (the schema has no such key): every run trains on the same categories.
+    categories: tuple[str, ...] = field(default=TRAIN_CATEGORIES, init=False)
 
     def __post_init__(self) -> None:
-        checks = [
-            ("starts", self.starts >= 1, "an integer >= 1"),
-            ("mixes", self.mixes >= 0, "an integer >= 0"),
-            ("n_views", self.n_views >= 2, "an integer >= 2"),
-            ("ig_step_prob", 0 <= self.ig_step_prob <= 1, "in [0, 1]"),
-            ("oracle_step_prob", 0 <= self.oracle_step_prob <= 1 - self.ig_step_prob,
-             "in [0, 1 - ig_step_prob]"),
-            ("hidden", all(h >= 1 for h in self.hidden), "a list of integers >= 1"),
-            ("epochs", self.epochs >= 1, "an integer >= 1"),
-            ("batch_size", self.batch_size >= 1, "an integer >= 1"),
-            ("lr", self.lr > 0, "a positive number"),
-            ("workers", self.workers >= 1, "an integer >= 1"),
-            ("max_models", self.max_models >= 0, "an integer >= 0 (0: every training model)"),
-        ]  # fmt: skip
-        for key, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{key}={getattr(self, key)!r}: must be {allowed}")
+        check_ranges(self)
+        if self.oracle_step_prob > 1 - self.ig_step_prob:
+            raise ConfigError(
+                f"oracle_step_prob={self.oracle_step_prob!r}: must be in [0, 1 - ig_step_prob]"
+            )
+
+
+ENTRY = Entry("train_scorer_schema", ScorerSettings, extra=(("paths", PathsConfig),))
 
 
 def mixed_views(views: list[ViewData], picks: np.ndarray) -> ViewData:
@@ -330,41 +364,21 @@ def run(settings: ScorerSettings) -> dict:
     return best
 
 
-@dataclass
-class ScorerTrainConfig(
-    schema_of(ScorerSettings, "ScorerFields", exclude=("dataset", "out_dir", "categories"))
-):
-    """The schema of ``conf/train_scorer.yaml``: the fields of :class:`ScorerSettings` (but the
-    training categories, which keep their default), paths as strings, and the shared paths."""
-
-    dataset: str = MISSING
-    out_dir: str = MISSING
-    paths: PathsConfig = field(default_factory=PathsConfig)
+def _start(cfg) -> tuple[ScorerSettings, dict]:
+    """The settings, then the decisions and the fit: what stops them before anything is written
+    (bad settings, too few models) raises ValueError."""
+    settings = ENTRY.build(cfg)
+    return settings, run(settings)
 
 
-register("train_scorer_schema", ScorerTrainConfig)
-
-
-def settings_from_config(cfg) -> ScorerSettings:
-    """:class:`ScorerSettings` from the composed config (``ConfigError`` names a bad key)."""
-    c = validated(ScorerTrainConfig, cfg)
-    del c["paths"]
-    c["dataset"], c["out_dir"] = Path(c["dataset"]), Path(c["out_dir"])
-    c["hidden"] = tuple(c["hidden"])
-    return ScorerSettings(**c)
-
-
-@hydra.main(config_path="../conf", config_name="train_scorer", version_base="1.3")
-def main(cfg: DictConfig) -> None:
-    try:
-        settings = settings_from_config(cfg)
-        best = run(settings)
-    except ValueError as err:
-        refuse(PROG, err)
+def _finish(started: tuple[ScorerSettings, dict]) -> None:
+    settings, best = started
     log.info("done: epoch %d captures %.4f of the best gain on the validation decisions (ig "
              "%.4f); %s", best["epoch"], best["val_captured"], best["val_captured_ig"],
              settings.out_dir / "scorer.json")  # fmt: skip
 
 
+main = command(PROG, "train_scorer", _start, _finish)
+
 if __name__ == "__main__":
-    entry_point(PROG, main)
+    main()

@@ -1,4 +1,4 @@
-"""``python -m train.summary <sweep dir or runs dir> [--out DIR]``: the cross-validation table.
+"""``python -m train.summary folder=<sweep dir or runs dir> [out=DIR]``: the cross-validation table.
 
 Finds every training run under the folder (a hydra sweep folder, whose jobs point at their run
 folders through ``run.json``, or a folder of run folders such as ``outputs/train``) and reads each
@@ -13,16 +13,20 @@ the same episodes. It writes:
 * ``cv_folds.csv``: one row per run (fold), the same numbers;
 * ``cv_coverage_by_view.png``: the held-out coverage by view averaged over the folds, with random,
   spread and the oracle (the paper's Fig. 12).
+
+The baselines and the paired differences come from the registry (:data:`train.heldout.BASELINES`).
+Settings: ``conf/train_summary.yaml`` (declared by :class:`SummarySettings`); a folder without
+finished runs ends with one line on stderr and exit status 2 (:mod:`nbv.config.cli`).
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import json
 import logging
 from collections import defaultdict
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
@@ -31,15 +35,43 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from nbv.config.cli import command  # noqa: E402
+from nbv.config.schema import PathsConfig  # noqa: E402
+from nbv.config.settings import Entry  # noqa: E402
+from nbv.policies.registry import METHODS  # noqa: E402
 from nbv.utils.atomic import write_text  # noqa: E402
 from nbv.utils.markdown import md_table  # noqa: E402
 from nbv.utils.stats import bootstrap_mean  # noqa: E402
-from train.heldout import HELDOUT_FILE, HELDOUT_METHODS  # noqa: E402
+from train.heldout import BASELINES, HELDOUT_FILE, HELDOUT_METHODS  # noqa: E402
 
-log = logging.getLogger(__name__)
+PROG = "train.summary"
+# Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.
+log = logging.getLogger("train.summary")
 
 #: Seed of every bootstrap interval of the summary.
 SEED = 0
+#: The baselines the network is paired with (network - baseline, per episode): those a robot
+#: could run (not the oracle's ground truth), the last in the registry's order first.
+PAIRED = tuple(reversed([m for m in BASELINES if not METHODS[m].ground_truth]))
+#: Line styles of the baselines' curves, in :data:`BASELINES`' order.
+_LINES = (":", "-.", "--", "-")
+
+
+@dataclass(frozen=True)
+class SummarySettings:
+    """The cross-validation table of finished training runs (``python -m train.summary``).
+
+    Attributes:
+        folder: a hydra sweep folder of ``python -m train -m`` (its jobs point at their run
+            folders through ``run.json``) or a folder of run folders (``outputs/train``).
+        out: the folder the tables and the plot go to.
+    """
+
+    folder: Path
+    out: Path = field(kw_only=True)
+
+
+ENTRY = Entry("train_summary_schema", SummarySettings, extra=(("paths", PathsConfig),))
 
 
 def find_runs(folder: Path) -> list[Path]:
@@ -72,14 +104,27 @@ def read_run(run: Path) -> dict:
 
 
 def _stats(keys: list[str], auc: dict[str, np.ndarray]) -> dict:
-    """Means and intervals of the network and the paired differences over the given episodes."""
+    """Means and intervals of the network and the paired differences (``minus_<baseline>``)
+    over the given episodes."""
     net = auc["network"]
     return {
         "network": bootstrap_mean(net, keys, SEED),
-        **{m: float(np.mean(auc[m])) for m in HELDOUT_METHODS[1:]},
-        "minus_spread": bootstrap_mean(net - auc["spread"], keys, SEED),
-        "minus_random": bootstrap_mean(net - auc["random"], keys, SEED),
+        **{m: float(np.mean(auc[m])) for m in BASELINES},
+        **{f"minus_{m}": bootstrap_mean(net - auc[m], keys, SEED) for m in PAIRED},
     }
+
+
+def _columns(stats: dict) -> dict:
+    """The CSV columns of one row's stats: the network's AUC with its interval, the baselines'
+    means, the paired differences with their intervals."""
+    net = stats["network"]
+    out = {"auc": net.mean, "auc_low": net.low, "auc_high": net.high}
+    out.update({m: stats[m] for m in BASELINES})
+    for m in PAIRED:
+        diff = stats[f"minus_{m}"]
+        out.update({f"minus_{m}": diff.mean, f"minus_{m}_low": diff.low,
+                    f"minus_{m}_high": diff.high})  # fmt: skip
+    return out
 
 
 def summarise(folder: Path, out: Path) -> list[dict]:
@@ -89,13 +134,9 @@ def summarise(folder: Path, out: Path) -> list[dict]:
         One dict per (model, score): ``folds`` (per-fold stats) and ``all`` (pooled stats).
 
     Raises:
-        SystemExit: no run under ``folder`` has a ``heldout.json``.
+        ValueError: no run under ``folder`` has a ``heldout.json``.
     """
-    runs = [read_run(p) for p in find_runs(folder)]
-    if not runs:
-        raise SystemExit(
-            f"train.summary: no finished training runs (with {HELDOUT_FILE}) under {folder}"
-        )
+    runs = [read_run(p) for p in _runs_of(folder)]
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for r in runs:
         groups[(r["model"], r["score"])].append(r)
@@ -112,27 +153,12 @@ def summarise(folder: Path, out: Path) -> list[dict]:
             fold_rows.append({
                 "model": model, "score": score, "fold": r["fold"], "held_out": r["held_out"],
                 "select": r["select"], "epoch": r["epoch"], "episodes": len(r["keys"]),
-                "auc": st["network"].mean, "auc_low": st["network"].low,
-                "auc_high": st["network"].high, "random": st["random"], "spread": st["spread"],
-                "oracle": st["oracle"], "minus_spread": st["minus_spread"].mean,
-                "minus_spread_low": st["minus_spread"].low,
-                "minus_spread_high": st["minus_spread"].high,
-                "minus_random": st["minus_random"].mean,
-                "minus_random_low": st["minus_random"].low,
-                "minus_random_high": st["minus_random"].high,
+                **_columns(st),
             })  # fmt: skip
     _write_csv(out / "cv_folds.csv", fold_rows)
     _write_csv(out / "cv_table.csv", [
         {"model": g["model"], "score": g["score"], "folds": len(g["runs"]),
-         "episodes": g["all"]["network"].n, "auc": g["all"]["network"].mean,
-         "auc_low": g["all"]["network"].low, "auc_high": g["all"]["network"].high,
-         "random": g["all"]["random"], "spread": g["all"]["spread"], "oracle": g["all"]["oracle"],
-         "minus_spread": g["all"]["minus_spread"].mean,
-         "minus_spread_low": g["all"]["minus_spread"].low,
-         "minus_spread_high": g["all"]["minus_spread"].high,
-         "minus_random": g["all"]["minus_random"].mean,
-         "minus_random_low": g["all"]["minus_random"].low,
-         "minus_random_high": g["all"]["minus_random"].high}
+         "episodes": g["all"]["network"].n, **_columns(g["all"])}
         for g in results
     ])  # fmt: skip
     write_text(out / "cv_table.md", table_markdown(results))
@@ -158,18 +184,23 @@ def table_markdown(results: list[dict]) -> str:
     rows = []
     for g in results:
         a = g["all"]
-        above_spread = sum(st["minus_spread"].above_zero for _, st in g["folds"])
-        above_random = sum(st["minus_random"].above_zero for _, st in g["folds"])
         n = len(g["folds"])
+        above = [sum(st[f"minus_{m}"].above_zero for _, st in g["folds"]) for m in PAIRED]
         rows.append([
             g["model"], g["score"], str(n), str(a["network"].n),
-            a["network"].text(3, signed=False), f"{a['random']:.3f}", f"{a['spread']:.3f}",
-            f"{a['oracle']:.3f}", a["minus_spread"].text(3), a["minus_random"].text(3),
-            f"{above_spread} of {n}", f"{above_random} of {n}",
+            a["network"].text(3, signed=False), *[f"{a[m]:.3f}" for m in BASELINES],
+            *[a[f"minus_{m}"].text(3) for m in PAIRED], *[f"{k} of {n}" for k in above],
         ])  # fmt: skip
-    header = ["model", "score", "folds", "episodes", "network", "random", "spread", "oracle",
-              "network - spread", "network - random", "folds above spread",
-              "folds above random"]  # fmt: skip
+    header = [
+        "model",
+        "score",
+        "folds",
+        "episodes",
+        "network",
+        *BASELINES,
+        *[f"network - {m}" for m in PAIRED],
+        *[f"folds above {m}" for m in PAIRED],
+    ]
     lines += md_table(header, rows)
     lines += [
         "",
@@ -197,7 +228,7 @@ def _plot(results: list[dict], path: Path) -> None:
         x = np.arange(1, len(curve) + 1)
         ax.plot(x, curve, marker="o", label=f"{g['model']} ({g['score']})")
     runs = results[0]["runs"]
-    for name, style in (("random", ":"), ("spread", "-."), ("oracle", "--")):
+    for name, style in zip(BASELINES, _LINES, strict=False):
         ref = np.mean([r["coverage"][name].mean(axis=0) for r in runs], axis=0)
         ax.plot(np.arange(1, len(ref) + 1), ref, style, color="gray", label=name)
     ax.set_xlabel("views")
@@ -210,17 +241,33 @@ def _plot(results: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description="Cross-validation table of training runs.")
-    parser.add_argument("folder", type=Path, help="a sweep folder or a folder of run folders")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default: folder)")
-    args = parser.parse_args(argv)
-    out = args.out or args.folder
-    summarise(args.folder, out)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
+def _runs_of(folder: Path) -> list[Path]:
+    """:func:`find_runs`, refusing a folder without any.
+
+    Raises:
+        ValueError: no run under ``folder`` has a ``heldout.json``.
+    """
+    runs = find_runs(folder)
+    if not runs:
+        raise ValueError(f"no finished training runs (with {HELDOUT_FILE}) under {folder}")
+    return runs
+
+
+def _start(cfg) -> SummarySettings:
+    """The settings, and runs to summarise: nothing is written yet."""
+    settings = ENTRY.build(cfg)
+    _runs_of(settings.folder)
+    return settings
+
+
+def _finish(settings: SummarySettings) -> None:
+    out = settings.out
+    summarise(settings.folder, out)
     log.info("wrote %s and %s:\n%s", out / "cv_table.md", out / "cv_coverage_by_view.png",
              (out / "cv_table.md").read_text())  # fmt: skip
 
+
+main = command(PROG, "train_summary", _start, _finish)
 
 if __name__ == "__main__":
     main()

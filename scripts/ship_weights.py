@@ -1,0 +1,85 @@
+"""Turn a training checkpoint into weights the package ships (a developer tool).
+
+    python scripts/ship_weights.py <best.pt> nbv/assets/weights/<method>.pt \
+        --command "<the training command>" [--dataset data/generated/research]
+
+A checkpoint of PCNBV, PCNBV-sph or the viewspace-conditioned network (told apart by the
+checkpoint's format) is written as shipped weights: bfloat16 tensors, the optimizer state
+dropped, and in ``extra["shipped"]`` the command that made it, the dataset and its identity
+(:func:`train.records.dataset_identity`) and the source file. Only those who ship weights with the
+package need it; users train with ``python -m train`` and evaluate their own ``best.pt``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import torch
+
+from nbv.models.checkpoints import (
+    CHECKPOINT_FORMAT,
+    CheckpointError,
+    load_checkpoint,
+    save_checkpoint,
+)
+from nbv.models.conditioned import CONDITIONED_FORMAT, load_conditioned, save_conditioned
+from train.records import dataset_identity
+
+#: Checkpoint format -> its reader and writer.
+FORMATS = {
+    CHECKPOINT_FORMAT: (load_checkpoint, save_checkpoint),
+    CONDITIONED_FORMAT: (load_conditioned, save_conditioned),
+}
+
+
+def checkpoint_format(path: Path) -> str | None:
+    """The format tag of a checkpoint file; None when it is not a torch file with one."""
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # unreadable or not torch: the caller names the file
+        return None
+    return payload.get("format") if isinstance(payload, dict) else None
+
+
+def ship(src: Path, dst: Path, command: str, dataset: Path) -> dict:
+    """Write ``dst`` from ``src``; returns the provenance stored in it.
+
+    Args:
+        src: a ``best.pt`` of ``python -m train`` or ``python -m train.conditioned``.
+        dst: the shipped file (bfloat16 weights).
+        command: the command that trained ``src`` (recorded).
+        dataset: the dataset folder it was trained on (its identity is recorded).
+
+    Raises:
+        CheckpointError: ``src`` is not a checkpoint of one of the project's networks.
+    """
+    load, save = FORMATS.get(checkpoint_format(src), (None, None))
+    if load is None:
+        raise CheckpointError(
+            f"{src}: not a checkpoint of PCNBV or of the view-conditioned network (formats "
+            f"{', '.join(FORMATS)})"
+        )
+    model, extra = load(src)
+    model = model.to(torch.bfloat16)
+    provenance = {"command": command, "dataset": str(dataset),
+                  "dataset_identity": dataset_identity(dataset), "source": str(src)}  # fmt: skip
+    keep = {k: v for k, v in extra.items() if k not in ("optimizer",)}
+    save(dst, model, {**keep, "shipped": provenance})
+    return provenance
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(
+        prog="scripts/ship_weights.py", description=__doc__.splitlines()[0]
+    )
+    parser.add_argument("src", type=Path)
+    parser.add_argument("dst", type=Path)
+    parser.add_argument("--command", required=True, help="the command that trained src")
+    parser.add_argument("--dataset", type=Path, default=Path("data/generated/synthetic"))
+    args = parser.parse_args(argv)
+    print(ship(args.src, args.dst, args.command, args.dataset))
+
+
+if __name__ == "__main__":
+    main()
