@@ -1,4 +1,5 @@
-"""Network weights shipped with the package (bfloat16; ``python scripts/ship_weights.py`` writes them).
+"""Network weights shipped with the package (bfloat16; ``python scripts/ship_weights.py``
+writes them).
 
 ``<method>.pt`` is used by the evaluator when the method's configured checkpoint does not exist
 (no local training run); its ``extra["shipped"]`` records the command that trained it and the
