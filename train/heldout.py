@@ -14,18 +14,11 @@ from tqdm import tqdm
 
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import EPISODE_VIEWS, run_episode
-from nbv.policies.registry import METHODS, MethodContext
+from nbv.policies.registry import BASELINES, METHODS, MethodContext
 from nbv.utils.seeding import named_rng
 
 #: The file in the run folder.
 HELDOUT_FILE = "heldout.json"
-#: The methods the fold's network is compared with, in the registry's order: those that need no
-#: network and plan nothing (random, spread, the oracle).
-BASELINES = tuple(
-    m.name
-    for m in METHODS.values()
-    if m.network_input is None and not m.planner and not m.learned_score
-)
 #: The methods it holds, the fold's network (``network``) first.
 HELDOUT_METHODS = ("network", *BASELINES)
 #: The baseline whose seeds ``random_repeats`` counts (a stochastic one: its policy is random).

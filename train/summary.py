@@ -14,7 +14,8 @@ the same episodes. It writes:
 * ``cv_coverage_by_view.png``: the held-out coverage by view averaged over the folds, with random,
   spread and the oracle (the paper's Fig. 12).
 
-The baselines and the paired differences come from the registry (:data:`train.heldout.BASELINES`).
+The baselines and the paired differences come from the registry
+(:data:`nbv.policies.registry.BASELINES`).
 Settings: ``conf/train_summary.yaml`` (declared by :class:`SummarySettings`); a folder without
 finished runs ends with one line on stderr and exit status 2 (:mod:`nbv.config.cli`).
 """
@@ -38,11 +39,11 @@ import numpy as np  # noqa: E402
 from nbv.config.cli import command  # noqa: E402
 from nbv.config.schema import PathsConfig  # noqa: E402
 from nbv.config.settings import Entry  # noqa: E402
-from nbv.policies.registry import METHODS  # noqa: E402
+from nbv.policies.registry import BASELINES, METHODS  # noqa: E402
 from nbv.utils.atomic import write_text  # noqa: E402
 from nbv.utils.markdown import md_table  # noqa: E402
 from nbv.utils.stats import bootstrap_mean  # noqa: E402
-from train.heldout import BASELINES, HELDOUT_FILE, HELDOUT_METHODS  # noqa: E402
+from train.heldout import HELDOUT_FILE, HELDOUT_METHODS  # noqa: E402
 
 PROG = "train.summary"
 # Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.

@@ -313,6 +313,13 @@ NETWORK_INPUTS: dict[str, str] = {
 }
 #: The planner methods, in report order (the one-shot plan first: the reconstruction plot's pick).
 PLANNERS: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.planner)
+#: The baselines: methods that read no network, plan nothing and learn no score (random,
+#: spread, the oracle), in report order.
+BASELINES: tuple[str, ...] = tuple(
+    m.name
+    for m in METHODS.values()
+    if m.network_input is None and not m.planner and not m.learned_score
+)
 #: The methods that rank with a learned score file.
 SCORED: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.learned_score)
 
