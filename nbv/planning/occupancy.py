@@ -31,6 +31,7 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics, project, rays_through
 from nbv.planning.raytrace import flat_index, traverse
+from nbv.utils.fields import ConfigError, check_ranges, setting
 
 #: Voxel states of :meth:`OccupancyMap.labels` (OctoMap's getLabels values).
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
@@ -58,31 +59,23 @@ class OccupancySettings:
             unknown, as in OctoMap.
     """
 
-    resolution: float = 0.02
-    bound: float = 0.56
-    p_hit: float = 0.7
-    p_miss: float = 0.4
-    clamp_min: float = 0.1192
-    clamp_max: float = 0.971
-    object_radius: float | None = 0.5
+    resolution: float = setting(0.02, check=lambda v: 0 < v <= 0.5, allowed="in (0, 0.5]")
+    bound: float = setting(
+        0.56, check=lambda v: v >= 0.5, allowed=">= 0.5 (the object fits in radius 0.5)"
+    )
+    p_hit: float = setting(0.7, check=lambda v: 0.5 < v < 1, allowed="in (0.5, 1)")
+    p_miss: float = setting(0.4, check=lambda v: 0 < v < 0.5, allowed="in (0, 0.5)")
+    clamp_min: float = setting(0.1192, check=lambda v: 0 < v < 0.5, allowed="in (0, 0.5)")
+    clamp_max: float = setting(0.971, check=lambda v: 0.5 < v < 1, allowed="in (0.5, 1)")
+    object_radius: float | None = setting(
+        0.5, check=lambda v: v is None or v > 0, allowed="null or a positive distance"
+    )
 
     def __post_init__(self) -> None:
-        checks = [
-            ("resolution", 0 < self.resolution <= 0.5, "in (0, 0.5]"),
-            ("bound", self.bound >= 0.5, ">= 0.5 (the object fits in radius 0.5)"),
-            ("p_hit", 0.5 < self.p_hit < 1, "in (0.5, 1)"),
-            ("p_miss", 0 < self.p_miss < 0.5, "in (0, 0.5)"),
-            ("clamp_min", 0 < self.clamp_min < 0.5, "in (0, 0.5)"),
-            ("clamp_max", 0.5 < self.clamp_max < 1, "in (0.5, 1)"),
-            ("object_radius", self.object_radius is None or self.object_radius > 0,
-             "null or a positive distance"),
-        ]  # fmt: skip
-        for key, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"{key}={getattr(self, key)!r}: must be {allowed}")
+        check_ranges(self)
         cells = 2 * self.bound / self.resolution
         if abs(cells - round(cells)) > 1e-6:
-            raise ValueError(
+            raise ConfigError(
                 f"bound={self.bound!r}: must be a whole number of voxels of resolution="
                 f"{self.resolution!r} from the centre (2 bound / resolution = {cells:.4f})"
             )

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 from nbv.planning.information_gain import METRICS
 from nbv.planning.occupancy import OccupancySettings
+from nbv.utils.fields import check_ranges, setting
 
 #: View simulations of the planner: ``analytic`` (exact for a convex hull, fast) or ``raycast``
 #: (renders the hull, about 100x slower).
@@ -29,24 +30,17 @@ class PlannerSettings:
             "three random views with 100 points").
     """
 
-    n_samp: int = 16384
-    simulation: str = "analytic"
+    n_samp: int = setting(16384, check=lambda v: v >= 1, allowed="an integer >= 1")
+    simulation: str = setting(
+        "analytic", check=lambda v: v in SIMULATIONS, allowed=f"one of {', '.join(SIMULATIONS)}"
+    )
     dilate: bool = False
-    lmax: int = 3
-    probes: int = 3
-    probe_points: int = 100
+    lmax: int = setting(3, check=lambda v: v >= 0, allowed="an integer >= 0")
+    probes: int = setting(3, check=lambda v: v >= 0, allowed="an integer >= 0")
+    probe_points: int = setting(100, check=lambda v: v >= 1, allowed="an integer >= 1")
 
     def __post_init__(self) -> None:
-        checks = [
-            ("n_samp", self.n_samp >= 1, "an integer >= 1"),
-            ("simulation", self.simulation in SIMULATIONS, f"one of {', '.join(SIMULATIONS)}"),
-            ("lmax", self.lmax >= 0, "an integer >= 0"),
-            ("probes", self.probes >= 0, "an integer >= 0"),
-            ("probe_points", self.probe_points >= 1, "an integer >= 1"),
-        ]
-        for key, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"hull.{key}={getattr(self, key)!r}: must be {allowed}")
+        check_ranges(self)
 
 
 @dataclass(frozen=True)
@@ -73,27 +67,17 @@ class VolumetricSettings:
 
     resolution: float = 0.02
     bound: float = 0.56
-    columns: int = 16
-    metric: str = "unobserved"
-    depth: int = 0
-    block: int = 16
-    spread_weight: float = 0.0
+    columns: int = setting(16, check=lambda v: v >= 1, allowed="an integer >= 1")
+    metric: str = setting(
+        "unobserved", check=lambda v: v in METRICS, allowed=f"one of {', '.join(METRICS)}"
+    )
+    depth: int = setting(0, check=lambda v: v >= 0, allowed="an integer >= 0 (voxels; 0: no cap)")
+    block: int = setting(16, check=lambda v: v >= 1, allowed="an integer >= 1 (pixels)")
+    spread_weight: float = setting(0.0, check=lambda v: v >= 0, allowed=">= 0")
 
     def __post_init__(self) -> None:
-        checks = [
-            ("columns", self.columns >= 1, "an integer >= 1"),
-            ("metric", self.metric in METRICS, f"one of {', '.join(METRICS)}"),
-            ("depth", self.depth >= 0, "an integer >= 0 (voxels; 0: no cap)"),
-            ("block", self.block >= 1, "an integer >= 1 (pixels)"),
-            ("spread_weight", self.spread_weight >= 0, ">= 0"),
-        ]
-        for key, ok, allowed in checks:
-            if not ok:
-                raise ValueError(f"ig.{key}={getattr(self, key)!r}: must be {allowed}")
-        try:
-            self.occupancy()
-        except ValueError as err:
-            raise ValueError(f"ig.{err}") from None
+        check_ranges(self)
+        self.occupancy()  # the grid's rules (resolution, bound: keys of this group too)
 
     def occupancy(self) -> OccupancySettings:
         """The map's grid and sensor model."""
