@@ -1,8 +1,10 @@
 """The viewspace-conditioned network: equivariance to the candidates' order, its checkpoints, its
 training samples, and a real (tiny) training run whose checkpoint plays both viewspaces."""
 
+import runpy
 import shutil
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -272,7 +274,7 @@ def test_a_real_training_run_with_map_features(dataset, tmp_path):
         "vcnbv_map",
         {"checkpoints": {"vcnbv_map": str(best)}},
     )
-    eval_settings = EvalSettings(out_dir=tmp_path / "e", methods=("vcnbv_map",),
+    eval_settings = EvalSettings(run="e", out_root=tmp_path, methods=("vcnbv_map",),
                                  checkpoints={"vcnbv_map": str(best)})  # fmt: skip
     networks, skipped = load_networks(eval_settings, 33)
     assert not skipped and networks["vcnbv_map"].reads_map
@@ -290,8 +292,10 @@ def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset
     from nbv.assets.weights import is_shipped, shipped_weights
     from nbv.eval.config import EvalSettings
     from nbv.eval.evaluate import with_shipped_weights
-    from train.ship import ship
 
+    # The developer tool that ships weights.
+    tool = Path(__file__).resolve().parents[1] / "scripts" / "ship_weights.py"
+    ship = runpy.run_path(str(tool))["ship"]
     # Shipping keeps the weights to bfloat16 and records where they came from.
     torch.manual_seed(1)
     net = ViewConditionedNet(TINY)
@@ -317,13 +321,13 @@ def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset
     assert len(set(episode.views)) == 10
     missing = str(tmp_path / "no.pt")
     checkpoints = {"vcnbv": missing, "vcnbv_map": missing, "pcnbv": missing, "pcnbv_sph": missing}
-    settings = EvalSettings(out_dir=tmp_path / "e", checkpoints=checkpoints)
+    settings = EvalSettings(run="e", out_root=tmp_path, checkpoints=checkpoints)
     replaced = with_shipped_weights(settings).checkpoints
     assert replaced["vcnbv"] == str(path)
     for method in ("pcnbv", "pcnbv_sph", "vcnbv_map"):  # shipped ones replace a missing one
         assert replaced[method] == str(shipped_weights(method) or missing)
     kept = EvalSettings(
-        out_dir=tmp_path / "e", checkpoints={**replaced, "vcnbv": str(tmp_path / "shipped.pt")}
+        run="e", out_root=tmp_path, checkpoints={**replaced, "vcnbv": str(tmp_path / "shipped.pt")}
     )
     assert with_shipped_weights(kept).checkpoints["vcnbv"] == str(tmp_path / "shipped.pt")
 

@@ -22,17 +22,20 @@ from omegaconf import OmegaConf
 import nbv.bench.config
 import nbv.dataset.config
 import nbv.eval.config
+import nbv.eval.curve
+import nbv.eval.ranking
 import nbv.export.config
 import nbv.plan.config
+import nbv.plan.example
 import train.conditioned
 import train.config
 import train.scorer
+import train.summary
 from nbv.assets.weights import shipped_weights
 from nbv.config.schema import ConfigError, describe
 from nbv.dataset.samples import SampleSettings
 from nbv.models.conditioned import ConditionedConfig
 from nbv.models.config import PCNBVConfig
-from nbv.planning.settings import PlannerSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"
@@ -42,11 +45,15 @@ ENTRY_POINTS = {
     "dataset": nbv.dataset.config,
     "train": train.config,
     "eval": nbv.eval.config,
+    "ranking": nbv.eval.ranking,
+    "curve": nbv.eval.curve,
     "bench": nbv.bench.config,
     "plan": nbv.plan.config,
+    "plan_example": nbv.plan.example,
     "export": nbv.export.config,
     "train_conditioned": train.conditioned,
     "train_scorer": train.scorer,
+    "train_summary": train.summary,
 }
 
 
@@ -55,7 +62,13 @@ INPUTS = Path(tempfile.mkdtemp(prefix="nbv-test-config-"))
 atexit.register(shutil.rmtree, INPUTS, True)
 (INPUTS / "tetra.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\n")
 #: The settings an entry point cannot run without (its input), given to every composition.
-REQUIRED = {"plan": [f"mesh={INPUTS / 'tetra.obj'}"], "export": [f"data_dir={INPUTS}"]}
+REQUIRED = {
+    "plan": [f"mesh={INPUTS / 'tetra.obj'}"],
+    "plan_example": ["out=example.obj"],
+    "export": [f"data_dir={INPUTS}"],
+    "curve": [f"runs=[{INPUTS}]"],
+    "train_summary": [f"folder={INPUTS}"],
+}
 
 
 def composed(name: str, overrides: list[str] = (), hydra: bool = False):
@@ -70,10 +83,10 @@ def build(name: str, cfg) -> list:
     entry = getattr(module, "ENTRY", None)
     settings = entry.build(cfg) if entry else module.settings_from_config(cfg)
     if name == "dataset":
-        return [settings, module.sample_settings_from_config(cfg)]
+        return [settings, settings.sample_settings()]
     if name == "train":
         n_views = train.config.validation_views(settings.dataset)
-        return [settings, PCNBVConfig(n_views=n_views, **settings.net)]
+        return [settings, PCNBVConfig(n_views=n_views, **settings.model.net)]
     return [settings]
 
 
@@ -104,7 +117,8 @@ def test_every_config_composes_with_every_group_option(name, option):
     settings, *others = build(name, cfg)
     assert type(settings).__name__ in (
         "Settings", "TrainSettings", "EvalSettings", "BenchSettings", "PlanSettings",
-        "ExportSettings", "ConditionedSettings", "ScorerSettings",
+        "ExportSettings", "ConditionedSettings", "ScorerSettings", "SummarySettings",
+        "RankingSettings", "CurveSettings", "ExampleSettings",
     )  # fmt: skip
     for other in others:  # the samples (None when disabled), the network config
         assert other is None or isinstance(other, SampleSettings | PCNBVConfig)
@@ -124,8 +138,8 @@ def test_training_builds_the_network_config_of_every_model():
     for model in sorted(p.stem for p in (CONF / "model").glob("*.yaml")):
         settings, net = build("train", composed("train", [f"model={model}"]))
         assert isinstance(net, PCNBVConfig) and net.n_views == 33
-        assert settings.model_name == model and settings.input in ("points", "signature")
-    tiny = build("train", composed("train", ["model=tiny"]))[0]
+        assert settings.model.name == model and settings.model.input in ("points", "signature")
+    tiny = build("train", composed("train", ["model=tiny"]))[0].model
     assert tiny.net["k"] == 4 and tiny.net["conv_channels"] == [32]
     assert "normalize_input" not in tiny.net  # not set in conf/model/: PCNBVConfig's default
 
@@ -133,10 +147,7 @@ def test_training_builds_the_network_config_of_every_model():
 def test_the_schemas_hold_the_fields_of_the_settings_they_feed():
     net_keys = {f for f in train.config.NetConfig.__dataclass_fields__}
     assert net_keys == set(PCNBVConfig.__dataclass_fields__) - {"n_views"}
-    assert set(nbv.eval.config.HullConfig.__dataclass_fields__) == set(
-        PlannerSettings.__dataclass_fields__
-    )
-    samples = set(nbv.dataset.config.SamplesConfig.__dataclass_fields__) - {"enabled"}
+    samples = set(composed("dataset").samples) - {"enabled"}
     assert samples == set(SampleSettings.__dataclass_fields__) - {"seed"}
     widths = set(train.conditioned.NetFields.__dataclass_fields__)
     assert widths == set(ConditionedConfig.__dataclass_fields__) - {"map_features"}
@@ -164,7 +175,8 @@ def test_shared_groups_write_a_value_once():
     assert ev.n_views == protocol.n_views == 10
     assert ds.eps == ev.prepare.eps == protocol.eps
     assert ds.n_gt == ev.prepare.n_gt and ds.points_per_view == ev.prepare.points_per_view
-    assert ds.intrinsics.width == ev.prepare.width and ds.intrinsics.fx == ev.prepare.focal
+    assert ds.intrinsics.width == ev.prepare.camera.width
+    assert ds.intrinsics.fx == ev.prepare.camera.fx
     assert ds.out_dir == tr.dataset == ev.data_dir == bench.dataset
     assert tr.out_dir == Path("outputs/train/pcnbv_coverage_fold0")
     # One override of the shared value moves every key that uses it.
@@ -291,8 +303,16 @@ def cli(tmp_path: Path, module: str, *args: str) -> subprocess.CompletedProcess[
         ("nbv.eval", ["start_views=[40]"],
          "nbv.eval: start_views=[40]: the viewspace 'original' has 33 views (indices 0..32)"),
         ("nbv.bench", ["checkpoint=nowhere.pt"], "nbv.bench: checkpoint='nowhere.pt': no such"),
+        ("nbv.eval.ranking", ["methods=[oracle]"],
+         "nbv.eval.ranking: methods ['oracle'] have no per-view scores; allowed: random"),
+        ("nbv.eval.curve", ["runs=[nowhere]"],
+         "nbv.eval.curve: checkpoint nowhere/best.pt does not exist or is not a file"),
+        ("nbv.plan", ["mesh=nowhere.obj"], "nbv.plan: mesh='nowhere.obj': no such file"),
+        ("nbv.plan.example", ["out=x.txt"], "nbv.plan.example: out='x.txt': must be a mesh"),
         # Refused by the run itself before it wrote anything (run.json does not count).
         ("train", ["dataset=nowhere"], "train: nowhere: no such dataset file or folder"),
+        ("train.summary", ["folder=nowhere"],
+         "train.summary: no finished training runs (with heldout.json) under nowhere"),
     ],
 )  # fmt: skip
 def test_a_refused_run_says_why_in_one_line_and_leaves_no_folder(tmp_path, module, args, line):

@@ -18,10 +18,11 @@ from test_policies import make_tiny_dataset, save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.eval.config import (
+    ENTRY,
+    DisturbSettings,
     EvalConfigError,
     EvalSettings,
     PrepareSettings,
-    settings_from_config,
 )
 from nbv.eval.disturb import auc_changes, disturbed, permuted_state, random_ball
 from nbv.eval.evaluate import EvalDataError, evaluate, run
@@ -33,8 +34,8 @@ from nbv.planning.scorer import GainScorer, ScorerError, save_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.planning.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode
+from nbv.policies.registry import CHECKS, NETWORK_INPUTS, PLANNERS, SHIPPED_SCORER, MethodContext
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
-from nbv.policies.registry import NETWORK_INPUTS, PLANNERS, SHIPPED_SCORER, MethodContext
 
 ROOT = Path(__file__).resolve().parents[1]
 STARTS = (1, 24)
@@ -52,12 +53,17 @@ def tiny(tmp_path_factory) -> dict[str, Path]:
     }
 
 
-def tiny_settings(tiny: dict[str, Path], out: Path, **kw) -> EvalSettings:
+def tiny_settings(
+    tiny: dict[str, Path], out: Path, checks=CHECKS, disturb_start_views=(24,), **kw
+) -> EvalSettings:
+    """Settings of the tiny dataset written to ``out`` (the disturbance checks and their start
+    views given flat, as keywords)."""
     base = dict(
-        out_dir=out,
+        run=out.name,
+        out_root=out.parent,
         data_dir=tiny["data"],
         start_views=STARTS,
-        disturb_start_views=(24,),
+        disturb=DisturbSettings(checks=checks, start_views=disturb_start_views),
         checkpoints={name: str(tiny[name]) for name in NETWORK_INPUTS},
         hull=PlannerSettings(n_samp=2048),
         progress=False,
@@ -82,6 +88,20 @@ def test_full_run_writes_every_output(full_run):
     for png in pngs:
         assert (full_run / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png
     data = json.loads((full_run / "results.json").read_text())
+    # The settings keep the flat layout runs have always stored (EvalSettings.stored).
+    assert list(data["settings"]) == [
+        "out_dir", "methods", "datasets", "data_dir", "mesh_dir", "limit", "prepare",
+        "viewspaces", "start_views", "n_views", "checkpoints", "hull", "ig", "ig_scorer",
+        "checks", "disturb_viewspaces", "disturb_start_views", "disturb_radius", "noise_sigmas",
+        "random_repeats", "seed", "threads", "workers", "progress", "plots",
+    ]  # fmt: skip
+    assert list(data["settings"]["prepare"]) == [
+        "dir", "backend", "blender", "width", "height", "focal", "n_gt", "eps",
+        "points_per_view", "seed",
+    ]  # fmt: skip
+    assert data["settings"]["out_dir"] == str(full_run)
+    assert data["settings"]["disturb_start_views"] == [24]
+    assert data["settings"]["noise_sigmas"] == [0.002, 0.005, 0.01]
     episodes = data["episodes"]
     plain = [e for e in episodes if e["check"] is None]
     # 2 models x 2 viewspaces x 14 methods (random with 10 seeds) x 2 starts, then the checks on
@@ -172,7 +192,7 @@ def test_a_missing_checkpoint_takes_the_shipped_weights_and_a_wrong_one_is_skipp
     assert "Skipped methods" in report and "not signature" in report
     assert f"`pcnbv` from `{shipped_weights('pcnbv')}` (the weights the package ships" in report
     # Without the fallback (evaluate alone) a missing checkpoint is skipped, naming the path.
-    bare = evaluate(replace(settings, out_dir=tmp_path / "bare", checks=()))
+    bare = evaluate(replace(settings, run="bare", disturb=DisturbSettings(checks=())))
     assert str(missing) in bare.skipped["pcnbv"]
 
 
@@ -233,8 +253,7 @@ def flat_square(path: Path) -> None:
 def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_path):
     folder = write_meshes(tmp_path / "meshes", bad=True)
     flat_square(folder / "flat.ply")
-    prep = PrepareSettings(dir=tmp_path / "prepared", width=SMALL_CAMERA.width,
-                           height=SMALL_CAMERA.height, focal=SMALL_CAMERA.fx, n_gt=1000,
+    prep = PrepareSettings(dir=tmp_path / "prepared", camera=SMALL_CAMERA, n_gt=1000,
                            points_per_view=50)  # fmt: skip
     path, failures = prepare_meshes(folder, prep, progress=False)
     assert [k for k, _ in failures] == ["broken"]
@@ -294,7 +313,7 @@ def test_bad_config_is_refused(override, message):
         else:
             c[key] = value
     with pytest.raises(EvalConfigError) as err:
-        settings_from_config(c)
+        ENTRY.build(c)
     assert message in str(err.value)
 
 
@@ -316,7 +335,7 @@ def test_default_config_composes_to_the_documented_defaults():
 
     with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
         cfg = compose("eval", overrides=["run=x"])
-    s = settings_from_config(cfg)
+    s = ENTRY.build(cfg)
     assert s.methods == tuple(METHODS_BY_NAME) and s.datasets == ("unseen",)
     assert s.viewspaces == ("original", "permuted") and s.start_views == (
         1,
@@ -343,7 +362,7 @@ def compose_with(overrides: list[str]) -> EvalSettings:
     from hydra import compose, initialize_config_dir
 
     with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
-        return settings_from_config(compose("eval", overrides=["run=x", *overrides]))
+        return ENTRY.build(compose("eval", overrides=["run=x", *overrides]))
 
 
 def test_missing_dataset_and_bad_start_view_stop_before_any_episode(tiny, tmp_path):
@@ -372,7 +391,16 @@ def test_cli_refuses_a_bad_method_with_one_line(tmp_path):
 def test_settings_are_replaceable_and_validated_on_replace(tiny, tmp_path):
     settings = tiny_settings(tiny, tmp_path)
     with pytest.raises(EvalConfigError, match="disturb.start_views"):
-        replace(settings, disturb_start_views=(2,))
+        replace(settings, disturb=DisturbSettings(start_views=(2,)))
+    # Null: every start view; stored resolved, as runs have always stored it.
+    every = replace(settings, disturb=DisturbSettings(start_views=None))
+    assert every.check_start_views == STARTS
+    assert every.stored()["disturb_start_views"] == STARTS
+    # A nested group's range names its key path, made in code as from a config.
+    with pytest.raises(EvalConfigError, match=r"disturb.radius=0: must be a positive distance"):
+        DisturbSettings(radius=0)
+    with pytest.raises(EvalConfigError, match=r"prepare.n_gt=0: must be an integer >= 1"):
+        PrepareSettings(n_gt=0)
 
 
 def test_interrupted_evaluation_resumes_from_its_log(tiny, tmp_path):
@@ -420,7 +448,7 @@ def test_ig_learned_runs_the_given_scorer_and_its_bytes_decide_the_log(tiny, tmp
     save_scorer(own, GainScorer((weight,), (np.zeros(1),)))
     settings = tiny_settings(tiny, tmp_path / "out", ig_scorer=own, **kw)
     first = evaluate(settings).records
-    spread = evaluate(replace(settings, out_dir=tmp_path / "spread", methods=("spread",)))
+    spread = evaluate(replace(settings, run="spread", methods=("spread",)))
     assert [r.views for r in first] == [r.views for r in spread.records]
     # The same file resumes; other weights in it are another run (the old log is set aside).
     assert evaluate(settings).resumed == len(first)

@@ -24,7 +24,7 @@ from datagen import SMALL_CAMERA, write_meshes
 from scipy.spatial import cKDTree
 
 import nbv.dataset
-from nbv.eval.config import EvalSettings, PrepareSettings
+from nbv.eval.config import DisturbSettings, EvalSettings, PrepareSettings
 from nbv.eval.evaluate import run as run_eval
 from nbv.export.config import ExportSettings
 from nbv.export.pcnbv_format import export, read_pcd, write_pcd
@@ -38,14 +38,13 @@ STARTS = (1, 24)
 def evaluate(tmp: Path, points_per_view: int, viewspaces: tuple[str, ...]) -> Path:
     """A finished evaluation run of the three meshes of tests/datagen.py; returns its folder."""
     prepare = PrepareSettings(
-        dir=tmp / "prepared", width=SMALL_CAMERA.width, height=SMALL_CAMERA.height,
-        focal=SMALL_CAMERA.fx, n_gt=1000, points_per_view=points_per_view,
-    )  # fmt: skip
+        dir=tmp / "prepared", camera=SMALL_CAMERA, n_gt=1000, points_per_view=points_per_view
+    )
     settings = EvalSettings(
-        out_dir=tmp / "run", methods=METHODS, datasets=("meshes",),
+        run="run", out_root=tmp, methods=METHODS, datasets=("meshes",),
         mesh_dir=write_meshes(tmp / "meshes", bad=False), prepare=prepare,
-        viewspaces=viewspaces, start_views=STARTS, checks=(), random_repeats=2, plots=False,
-        progress=False, workers=1,
+        viewspaces=viewspaces, start_views=STARTS, disturb=DisturbSettings(checks=()),
+        random_repeats=2, plots=False, progress=False, workers=1,
     )  # fmt: skip
     return run_eval(settings)
 

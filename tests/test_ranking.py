@@ -78,7 +78,7 @@ def test_the_states_are_the_oracles_episode(tiny):
 def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
     ds = nbv.dataset.open(tiny["data"])
     model = ds.model(ds.keys()[1])
-    settings = EvalSettings(out_dir=Path("unused"), progress=False,
+    settings = EvalSettings(run="unused", progress=False,
                             checkpoints={n: str(tiny[n]) for n in NETWORK_INPUTS})  # fmt: skip
     from nbv.eval.evaluate import load_networks
 
@@ -144,7 +144,7 @@ def test_summary_exact_on_hand_made_records():
 
 
 def test_ranking_is_deterministic_and_leaves_out_states_without_ranks(tiny):
-    settings = EvalSettings(out_dir=Path("unused"), data_dir=tiny["data"], start_views=(1,),
+    settings = EvalSettings(run="unused", data_dir=tiny["data"], start_views=(1,),
                             methods=("random", "spread", "ig"), progress=False)  # fmt: skip
     first, again = ranking(settings), ranking(settings)
     assert first == again
@@ -160,18 +160,22 @@ def test_ranking_is_deterministic_and_leaves_out_states_without_ranks(tiny):
 
 
 def test_the_command_writes_its_tables_and_refuses_methods_without_scores(tiny, tmp_path):
-    base = [sys.executable, "-m", "nbv.eval.ranking", "--data-dir", str(tiny["data"])]
-    bad = subprocess.run([*base, "--methods", "spread", "hull_sco"], capture_output=True,
-                         text=True, cwd=ROOT)  # fmt: skip
-    assert bad.returncode == 2
-    assert "['hull_sco'] have no per-view scores; allowed: random, spread" in bad.stderr
+    base = [sys.executable, "-m", "nbv.eval.ranking", f"data_dir={tiny['data']}"]
     out = tmp_path / "rank"
+    bad = subprocess.run([*base, "methods=[spread,hull_sco]", f"out={out}"],
+                         capture_output=True, text=True, cwd=ROOT)  # fmt: skip
+    assert bad.returncode == 2
+    last = bad.stderr.strip().splitlines()[-1]
+    assert last.startswith("nbv.eval.ranking: methods ['hull_sco'] have no per-view scores; "
+                           "allowed: random, spread")  # fmt: skip
+    assert not out.exists()  # the refused run left no folder
     done = subprocess.run(
-        [*base, "--limit", "1", "--out", str(out), "--methods", "spread", "vcnbv_map",
-         "--checkpoint", f"vcnbv_map={tiny['vcnbv_map']}"],
+        [*base, "limit=1", f"out={out}", "methods=[spread,vcnbv_map]",
+         f"checkpoints.vcnbv_map={tiny['vcnbv_map']}"],
         capture_output=True, text=True, cwd=ROOT,
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
+    assert "vcnbv_map: Spearman" in (out / "ranking.log").read_text()
     table = (out / "ranking.md").read_text()
     assert table.startswith("| method | states | Spearman [95 %] |") and "| vcnbv_map |" in table
     states = json.loads((out / "ranking.json").read_text())["states"]

@@ -1,8 +1,9 @@
 """``python -m nbv.eval [methods=[...]] [dataset=unseen|test|meshes] [viewspace=...] [key=value]``.
 
-Settings: ``conf/eval.yaml`` (schema: :mod:`nbv.eval.config`). Writes ``outputs/eval/<run>/``:
-results.json, summary.csv, report.md and the PNG plots. A refused setting ends with one line on
-stderr and exit status 2, and leaves no run folder behind (:mod:`nbv.config.cli`).
+Settings: ``conf/eval.yaml`` (declared by :class:`nbv.eval.config.EvalSettings`). Writes
+``outputs/eval/<run>/``: results.json, summary.csv, report.md and the PNG plots. A refused
+setting or input (a missing dataset, a start view outside it) ends with one line on stderr and
+exit status 2, and leaves no run folder behind (:mod:`nbv.config.cli`).
 """
 
 import logging
@@ -15,28 +16,30 @@ import os
 # (OMP_WAIT_POLICY=PASSIVE). Set before torch is imported; the environment wins.
 os.environ.setdefault("GOMP_SPINCOUNT", "10000")
 
-import hydra  # noqa: E402
-from omegaconf import DictConfig  # noqa: E402
+from pathlib import Path  # noqa: E402
 
-from nbv.config.cli import entry_point, refuse  # noqa: E402
-from nbv.eval.config import settings_from_config  # noqa: E402
+from nbv.config.cli import command  # noqa: E402
+from nbv.eval.config import ENTRY  # noqa: E402
 
 PROG = "nbv.eval"
 # Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.
 log = logging.getLogger("nbv.eval")
 
 
-@hydra.main(config_path="../../conf", config_name="eval", version_base="1.3")
-def main(cfg: DictConfig) -> None:
+def start(cfg) -> Path:
+    """Build the settings and run the evaluation. The whole run is here, as it always was: a
+    ValueError it raises (a bad setting, a missing or unusable dataset or scorer file) refuses
+    the run, and the run folder goes when the run left nothing of its own there."""
     from nbv.eval.evaluate import run
 
-    try:
-        settings = settings_from_config(cfg)
-        out = run(settings)
-    except ValueError as err:  # bad settings, missing datasets: one clear line
-        refuse(PROG, err)
+    return run(ENTRY.build(cfg))
+
+
+def finish(out: Path) -> None:
     log.info("wrote %s, results.json, summary.csv and the plots", out / "report.md")
 
 
+main = command(PROG, "eval", start, finish)
+
 if __name__ == "__main__":
-    entry_point(PROG, main)
+    main()

@@ -1,22 +1,25 @@
-"""The evaluation settings: the schema of ``conf/eval.yaml`` and the settings built from it.
+"""The settings of ``python -m nbv.eval``: :class:`EvalSettings`, the one declaration of
+``conf/eval.yaml``'s keys, nested like it (the hydra schema ``eval_schema`` is derived from it by
+:mod:`nbv.config.settings`).
 
-:class:`EvalConfig` is registered as ``eval_schema``, the first entry of the config's defaults
-list: hydra refuses an unknown key or a value of the wrong type while composing. The method
-names, the network methods' checkpoint inputs and the disturbance checks come from the registry
-(:mod:`nbv.policies.registry`); the ``hull:`` keys are the fields of
-:class:`nbv.planning.settings.PlannerSettings`, which :attr:`EvalSettings.hull` holds.
-:class:`EvalSettings` keeps the checks of names, ranges and fields that go together, among them
-that every start view lies in every selected viewspace.
+The method names, the network methods' checkpoint inputs and the disturbance checks come from the
+registry (:mod:`nbv.policies.registry`); the ``hull:`` and ``ig:`` groups are the planners' own
+settings (:class:`~nbv.planning.settings.PlannerSettings`,
+:class:`~nbv.planning.settings.VolumetricSettings`). :class:`EvalSettings` keeps the checks of
+names and of fields that go together, among them that every start view lies in every selected
+viewspace. :meth:`EvalSettings.stored` is the flat layout ``results.json`` and the episode log
+store the settings in.
 """
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from omegaconf import MISSING
-
+from nbv.assets.weights import SHIPPED_SCORER
 from nbv.config.schema import (
     CameraConfig,
     ConfigError,
@@ -24,139 +27,47 @@ from nbv.config.schema import (
     ProtocolConfig,
     check_views,
     names,
-    register,
-    schema_of,
-    validated,
 )
-from nbv.geometry.scores import DEFAULT_EPS
+from nbv.config.settings import Entry, check_ranges, setting
+from nbv.geometry.camera import Intrinsics
+from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT
 from nbv.geometry.viewspace import get_viewspace
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
-from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS, SHIPPED_SCORER
+from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS
 
 DATASETS = ("unseen", "test", "meshes")
 VIEWSPACES = ("original", "permuted")
 BACKENDS = ("raycast", "blender")
+# TODO(issue 28): one shared constant for the points kept per view (also nbv/plan/config.py
+# and nbv/dataset/generation.py); conf/protocol/ sets the value users get.
+POINTS_PER_VIEW = 2048
 
 #: The error of a setting that cannot be used (one class for every entry point).
 EvalConfigError = ConfigError
 
 
-@dataclass(frozen=True)
-class PrepareSettings:
-    """How ``mesh_dir`` becomes a dataset (see ``prepare:`` in ``conf/eval.yaml``)."""
+def names_setting(label: str, default: tuple[str, ...], key: str | None = None, **kw: Any) -> Any:
+    """A field the YAML gives as null, one name or a list of names (a tuple of names here).
 
-    dir: Path = Path("outputs/eval/prepared")
-    backend: str = "raycast"
-    blender: str | None = None
-    width: int = 640
-    height: int = 480
-    focal: float = 476.0
-    n_gt: int = 16384
-    eps: float = DEFAULT_EPS
-    points_per_view: int = 2048
-    seed: int = 0
+    Args:
+        label: the key path a bad value's message names (``disturb.checks``).
+        default: the field's default; the YAML's default is the same list (``config_default``
+            in ``kw`` overrides it, e.g. null for "derived").
+        key: the YAML key, when it is not the field's name.
+    """
+    kw.setdefault("config_default", list(default))
+    return setting(default, key=key, config=Any, convert=lambda v: names(v, label), **kw)
 
 
-@dataclass(frozen=True)
-class EvalSettings:
-    """Everything one evaluation needs (see ``conf/eval.yaml`` for the meaning of each)."""
+def _optional_path(value: str | None) -> Path | None:
+    """A path the YAML may leave null or empty (both: none)."""
+    return Path(value) if value else None
 
-    out_dir: Path
-    methods: tuple[str, ...] = tuple(METHODS)
-    datasets: tuple[str, ...] = ("unseen",)
-    data_dir: Path = Path("data/generated/synthetic")
-    mesh_dir: Path | None = None
-    limit: int | None = None
-    prepare: PrepareSettings = field(default_factory=PrepareSettings)
-    viewspaces: tuple[str, ...] = VIEWSPACES
-    start_views: tuple[int, ...] = DEFAULT_START_VIEWS
-    n_views: int = EPISODE_VIEWS
-    checkpoints: dict[str, str] = field(
-        default_factory=lambda: {
-            "pcnbv": "outputs/train/pcnbv_coverage_fold0/best.pt",
-            "pcnbv_sph": "outputs/train/pcnbv_sph_coverage_fold0/best.pt",
-            "vcnbv": "outputs/train/vcnbv/best.pt",
-            "vcnbv_map": "outputs/train/vcnbv_map/best.pt",
-        }
-    )
-    hull: PlannerSettings = field(default_factory=PlannerSettings)
-    ig: VolumetricSettings = field(default_factory=VolumetricSettings)
-    ig_scorer: Path | None = None
-    checks: tuple[str, ...] = CHECKS
-    disturb_viewspaces: tuple[str, ...] = ("original",)
-    disturb_start_views: tuple[int, ...] = (1, 10, 24)
-    disturb_radius: float = 0.5
-    noise_sigmas: tuple[float, ...] = (0.002, 0.005, 0.01)
-    random_repeats: int = 10
-    seed: int = 0
-    threads: int = 0
-    workers: int = 1
-    progress: bool = True
-    plots: bool = True
 
-    def scorer_file(self) -> Path:
-        """The learned score ``ig_learned`` runs with: ``ig_scorer``, or the shipped one."""
-        return self.ig_scorer if self.ig_scorer is not None else SHIPPED_SCORER
-
-    def __post_init__(self) -> None:
-        _allowed("methods", self.methods, tuple(METHODS))
-        _allowed("dataset", self.datasets, DATASETS)
-        _allowed("viewspace", self.viewspaces, VIEWSPACES)
-        _allowed("disturb.checks", self.checks, CHECKS, empty_ok=True)
-        _allowed("disturb.viewspace", self.disturb_viewspaces, VIEWSPACES, empty_ok=True)
-        _allowed("prepare.backend", (self.prepare.backend,), BACKENDS)
-        missing = sorted(set(NETWORK_INPUTS) & set(self.methods) - set(self.checkpoints))
-        if missing:
-            raise EvalConfigError(
-                f"checkpoints: no entry for {missing}; give checkpoints.<method>=<path of best.pt>"
-            )
-        if "meshes" in self.datasets and self.mesh_dir is None:
-            raise EvalConfigError("dataset=meshes needs mesh_dir=<folder of mesh files>")
-        h, p = self.hull, self.prepare
-        checks = [
-            ("n_views", self.n_views, self.n_views >= 2, "an integer >= 2"),
-            ("start_views", list(self.start_views), len(self.start_views) >= 1, "non-empty"),
-            ("limit", self.limit, self.limit is None or self.limit >= 1,
-             "null or an integer >= 1"),
-            ("threads", self.threads, self.threads >= 0, "an integer >= 0 (0 = torch's default)"),
-            ("workers", self.workers, self.workers >= 0,
-             "an integer >= 0 (0 = one per available core, at most 8)"),
-            ("disturb.radius", self.disturb_radius, self.disturb_radius > 0, "a positive distance"),
-            ("disturb.noise", list(self.noise_sigmas),
-             all(x > 0 for x in self.noise_sigmas) and len(set(self.noise_sigmas))
-             == len(self.noise_sigmas), "distinct positive standard deviations"),
-            ("random_repeats", self.random_repeats, self.random_repeats >= 1, "an integer >= 1"),
-            ("hull.dilate", h.dilate, isinstance(h.dilate, bool), "true or false"),
-            ("prepare.n_gt", p.n_gt, p.n_gt >= 1, "an integer >= 1"),
-            ("prepare.eps", p.eps, p.eps > 0, "a positive distance"),
-            ("prepare.points_per_view", p.points_per_view, p.points_per_view >= 0,
-             "an integer >= 0 (0 = all)"),
-        ]  # fmt: skip
-        for key, value, ok, allowed in checks:
-            if not ok:
-                raise EvalConfigError(f"{key}={value!r}: must be {allowed}")
-        for vs in self.viewspaces:
-            check_views("start_views", self.start_views, vs, len(get_viewspace(vs)))
-        if self.checks and self.check_viewspaces and not self.check_start_views:
-            raise EvalConfigError(
-                f"disturb.start_views={list(self.disturb_start_views)}: none of them is in "
-                f"start_views={list(self.start_views)}; the checks compare with the undisturbed "
-                "episodes from the same start views (give disturb.start_views=null for all)"
-            )
-        if self.mesh_dir is not None and not Path(self.mesh_dir).is_dir():
-            raise EvalConfigError(f"mesh_dir={str(self.mesh_dir)!r}: no such folder")
-
-    @property
-    def check_viewspaces(self) -> tuple[str, ...]:
-        """The viewspaces of the disturbance checks: ``disturb_viewspaces`` also evaluated."""
-        return tuple(v for v in self.disturb_viewspaces if v in self.viewspaces)
-
-    @property
-    def check_start_views(self) -> tuple[int, ...]:
-        """The start views of the disturbance checks: ``start_views`` also in
-        ``disturb_start_views``."""
-        return tuple(v for v in self.start_views if v in self.disturb_start_views)
+def _camera(value: dict) -> Intrinsics:
+    """``{width, height, focal}`` of ``conf/camera/`` as the camera (principal point centred)."""
+    return Intrinsics.centred(value["width"], value["height"], value["focal"])
 
 
 def _allowed(key: str, values: tuple, allowed: tuple, empty_ok: bool = False) -> None:
@@ -171,135 +82,296 @@ def _allowed(key: str, values: tuple, allowed: tuple, empty_ok: bool = False) ->
         raise EvalConfigError(f"{key} lists a name twice: {list(values)}")
 
 
-# The schema of conf/eval.yaml: which keys exist and their types (the values are there). A key
-# that takes one name or a list of names is typed Any and checked by names.
-
-#: ``hull:``: the fields of PlannerSettings.
-HullConfig = schema_of(PlannerSettings, "HullConfig")
-#: ``ig:``: the fields of VolumetricSettings.
-IGConfig = schema_of(VolumetricSettings, "IGConfig")
-
-
-@dataclass
-class PrepareConfig:
-    """``prepare:``; its camera comes from ``conf/camera/`` (``camera@prepare.camera``)."""
-
-    dir: str = MISSING
-    backend: str = MISSING
-    blender: str | None = MISSING
-    camera: CameraConfig = field(default_factory=CameraConfig)
-    n_gt: int = MISSING
-    eps: float = MISSING
-    points_per_view: int = MISSING
-    seed: int = MISSING
-
-
-@dataclass
-class DisturbConfig:
-    """``disturb:``."""
-
-    checks: Any = MISSING
-    viewspace: Any = MISSING
-    start_views: list[int] | None = MISSING
-    radius: float = MISSING
-    noise: list[float] = MISSING
-
-
-@dataclass
-class EvalConfig:
-    """``conf/eval.yaml``."""
-
-    run: str = MISSING
-    out_root: str = MISSING
-    methods: Any = MISSING
-    dataset: Any = MISSING
-    data_dir: str = MISSING
-    mesh_dir: str | None = MISSING
-    limit: int | None = MISSING
-    prepare: PrepareConfig = field(default_factory=PrepareConfig)
-    viewspace: Any = MISSING
-    start_views: list[int] = MISSING
-    n_views: int = MISSING
-    checkpoints: dict[str, str] = MISSING
-    hull: HullConfig = field(default_factory=HullConfig)
-    ig: IGConfig = field(default_factory=IGConfig)
-    ig_scorer: str | None = MISSING
-    disturb: DisturbConfig = field(default_factory=DisturbConfig)
-    random_repeats: int = MISSING
-    seed: int = MISSING
-    threads: int = MISSING
-    workers: int = MISSING
-    progress: bool = MISSING
-    plots: bool = MISSING
-    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
-    paths: PathsConfig = field(default_factory=PathsConfig)
-
-
-register("eval_schema", EvalConfig)
-
-
-def settings_from_config(cfg) -> EvalSettings:
-    """Build :class:`EvalSettings` from the composed hydra config of ``conf/eval.yaml``.
-
-    Raises:
-        EvalConfigError: an unknown key, a value of the wrong type or out of range, a start
-            view outside a viewspace (the message names the key).
-    """
-    c = validated(EvalConfig, cfg)
-    prep, disturb, checkpoints = c["prepare"], c["disturb"], c["checkpoints"]
-    unknown_ckpt = sorted(set(checkpoints) - set(NETWORK_INPUTS))
-    if unknown_ckpt:
-        raise EvalConfigError(
-            f"checkpoints: unknown {unknown_ckpt}; allowed: {', '.join(NETWORK_INPUTS)}"
-        )
-    mesh_dir = c["mesh_dir"]
-    datasets = names(c["dataset"], "dataset")
-    if not datasets:
-        datasets = ("unseen", "meshes") if mesh_dir else ("unseen",)
-    start_views = tuple(c["start_views"])
-    disturb_starts = disturb["start_views"]
-    disturb_starts = start_views if disturb_starts is None else tuple(disturb_starts)
+def _group_ranges(obj: Any, group: str) -> None:
+    """:func:`check_ranges` of a nested group, its message naming the key path (``prepare.``):
+    the same message whether the settings came from a config or from code."""
     try:
-        hull = PlannerSettings(**c["hull"])
-        ig = VolumetricSettings(**c["ig"])
-    except ValueError as err:  # the settings name the hull.<key> or ig.<key> they refuse
-        raise EvalConfigError(str(err)) from None
-    camera = prep["camera"]
-    return EvalSettings(
-        out_dir=Path(c["out_root"]) / c["run"],
-        methods=names(c["methods"], "methods"),
-        datasets=datasets,
-        data_dir=Path(c["data_dir"]),
-        mesh_dir=Path(mesh_dir) if mesh_dir else None,
-        limit=c["limit"],
-        prepare=PrepareSettings(
-            dir=Path(prep["dir"]),
-            backend=prep["backend"],
-            blender=prep["blender"],
-            width=camera["width"],
-            height=camera["height"],
-            focal=camera["focal"],
-            n_gt=prep["n_gt"],
-            eps=prep["eps"],
-            points_per_view=prep["points_per_view"],
-            seed=prep["seed"],
-        ),
-        viewspaces=names(c["viewspace"], "viewspace"),
-        start_views=start_views,
-        n_views=c["n_views"],
-        checkpoints=dict(checkpoints),
-        hull=hull,
-        ig=ig,
-        ig_scorer=Path(c["ig_scorer"]) if c["ig_scorer"] else None,
-        checks=names(disturb["checks"], "disturb.checks"),
-        disturb_viewspaces=names(disturb["viewspace"], "disturb.viewspace"),
-        disturb_start_views=disturb_starts,
-        disturb_radius=disturb["radius"],
-        noise_sigmas=tuple(float(x) for x in disturb["noise"]),
-        random_repeats=c["random_repeats"],
-        seed=c["seed"],
-        threads=c["threads"],
-        workers=c["workers"],
-        progress=c["progress"],
-        plots=c["plots"],
+        check_ranges(obj)
+    except ConfigError as err:
+        raise EvalConfigError(f"{group}.{err}") from None
+
+
+def _at_least(n: int) -> Callable[[int], bool]:
+    return lambda v: v >= n
+
+
+@dataclass(frozen=True)
+class PrepareSettings:
+    """How ``mesh_dir`` becomes a dataset (:func:`nbv.dataset.generate.generate`,
+    ``source=folder``). The result is cached in ``<dir>/<hash of the files and these settings>/``,
+    so reruns reuse it.
+
+    Attributes:
+        dir: the cache folder of prepared mesh folders.
+        backend: ``raycast`` (Open3D, 3-4x faster than Blender here, the same camera model) or
+            ``blender`` (Cycles, the reference).
+        blender: a Blender binary for ``backend=blender``; null = the bpy module of this
+            environment.
+        camera: the camera, from ``conf/camera/`` (``camera@prepare.camera=small``;
+            ``prepare.camera.width=...`` for one value): ``width``, ``height`` (pixels) and
+            ``focal`` (pixels, fx = fy, principal point at the image centre).
+        n_gt: ground-truth points sampled uniformly on each normalised mesh.
+        eps: coverage distance (world units; objects fit in a sphere of radius 0.5).
+        points_per_view: points kept of each view (a seeded random subset); 0 keeps all.
+        seed: the seed of the sampling.
+    """
+
+    dir: Path = Path("outputs/eval/prepared")
+    backend: str = "raycast"
+    blender: str | None = None
+    camera: Intrinsics = setting(factory=Intrinsics.centred, config=CameraConfig, convert=_camera)
+    n_gt: int = setting(DEFAULT_N_GT, check=_at_least(1), allowed="an integer >= 1")
+    eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
+    points_per_view: int = setting(
+        POINTS_PER_VIEW, check=_at_least(0), allowed="an integer >= 0 (0 = all)"
     )
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        _allowed("prepare.backend", (self.backend,), BACKENDS)
+        _group_ranges(self, "prepare")
+        c = self.camera
+        if c != Intrinsics.centred(c.width, c.height, c.fx):
+            # The cache's identity holds width, height and focal: the camera conf/camera/ makes.
+            raise EvalConfigError(
+                f"prepare.camera={c}: must have fx = fy and the principal point at the centre"
+            )
+
+
+def _distinct_positive(values: tuple[float, ...]) -> bool:
+    return all(x > 0 for x in values) and len(set(values)) == len(values)
+
+
+@dataclass(frozen=True)
+class DisturbSettings:
+    """The disturbance checks (the paper's Fig. 18), run on the selected methods they apply to
+    (the registry's ``checks`` of each method).
+
+    Attributes:
+        checks: any of ``random_cloud`` (the networks get a random cloud, same size, uniform in
+            a ball, and the true view state), ``permuted_state`` (the networks get the true
+            cloud and a random view state with as many visited views; they still may not pick
+            a visited view), ``random_hull`` (hull_sco plans on the hull of as many random
+            points as the start view has), ``position_noise`` (the networks, the one-shot
+            planners and ig see every captured point moved by Gaussian noise of each sigma in
+            ``noise``); empty = none.
+        viewspaces: the viewspaces to run them on (key ``viewspace``: a name or a list); those
+            not evaluated (``viewspace``) are left out.
+        start_views: the start views of the checks: those of ``start_views`` also in this list;
+            null = all of them. Three by default (one per camera ring): the PCNBV forward pass
+            (~0.09 s on 2 idle cores, 9 per episode) dominates the run time.
+        radius: radius of the ball the random points are drawn in (objects fit in radius 0.5).
+        noise: standard deviations of ``position_noise``, object frame units (the object fits
+            in radius 0.5); distinct and positive.
+    """
+
+    checks: tuple[str, ...] = names_setting("disturb.checks", CHECKS)
+    viewspaces: tuple[str, ...] = names_setting(
+        "disturb.viewspace", VIEWSPACES[:1], key="viewspace"
+    )
+    start_views: tuple[int, ...] | None = (1, 10, 24)
+    radius: float = setting(0.5, check=lambda v: v > 0, allowed="a positive distance")
+    noise: tuple[float, ...] = setting(
+        (0.002, 0.005, 0.01), check=_distinct_positive,
+        allowed="distinct positive standard deviations",
+    )  # fmt: skip
+
+    def __post_init__(self) -> None:
+        _allowed("disturb.checks", self.checks, CHECKS, empty_ok=True)
+        _allowed("disturb.viewspace", self.viewspaces, VIEWSPACES, empty_ok=True)
+        _group_ranges(self, "disturb")
+
+
+@dataclass(frozen=True)
+class EvalSettings:
+    """Everything one evaluation needs: ``conf/eval.yaml``, key by key.
+
+    Attributes:
+        run: the run's name: results go to ``<out_root>/<run>/`` (results.json, summary.csv,
+            report.md, the PNG plots, hydra's ``.hydra/`` and ``eval.log``).
+        out_root: the folder of the evaluation runs.
+        methods: the methods to run (a name or a list), any of the registry's
+            (:mod:`nbv.policies.registry`; ``docs/methods.md``). A network method whose
+            checkpoint is missing runs on the weights the package ships (nbv/assets/weights/);
+            one whose checkpoint cannot be used is listed as skipped.
+        datasets: the models to evaluate (key ``dataset``: a name or a list): ``unseen`` (the 8
+            unseen categories, split test, of the dataset in ``data_dir``), ``test`` (the test
+            split of the 8 training categories of ``data_dir``), ``meshes`` (every mesh file of
+            ``mesh_dir``, prepared through the dataset pipeline and cached). null = unseen, plus
+            meshes when ``mesh_dir`` is set.
+        data_dir: a dataset folder made by ``make dataset``.
+        mesh_dir: a folder of mesh files (obj, ply, off, stl, glb, gltf; searched recursively),
+            a complex-object test set; null = none.
+        limit: at most this many models of each dataset (spread over its categories); null =
+            all.
+        prepare: how ``mesh_dir`` is turned into a dataset (:class:`PrepareSettings`).
+        viewspaces: the viewspaces to run on (key ``viewspace``: a name or a list): ``original``
+            (the networks' training viewspace) and/or ``permuted`` (other camera positions in
+            another order: the networks' indices point elsewhere).
+        start_views: the episodes' start views (indices into every selected viewspace);
+            non-empty.
+        n_views: views per episode, the start view included; at least 2.
+        checkpoints: network method name -> its training checkpoint (``best.pt`` of
+            ``python -m train``, or of ``python -m train.conditioned`` for the
+            viewspace-conditioned ones); every selected network method needs one.
+        hull: the convex-hull set cover (:class:`~nbv.planning.settings.PlannerSettings`).
+        ig: the volumetric information gain's occupancy map and scores
+            (:class:`~nbv.planning.settings.VolumetricSettings`).
+        ig_scorer: the learned score of ig_learned, a ``scorer.json`` of
+            ``python -m train.scorer``; null = the one the package ships
+            (nbv/assets/weights/ig_learned.json). It uses the ``ig:`` settings for its map.
+        disturb: the disturbance checks (:class:`DisturbSettings`).
+        random_repeats: episodes of a stochastic method (random) run with this many seeds each;
+            its numbers are their means, so a comparison with random is not one seed's luck.
+        seed: every random draw (random views, probes, hull samples, disturbances) derives from
+            this seed, the method, the model, the viewspace and the start view.
+        threads: torch threads for the networks (0 = torch's default). ``python -m nbv.eval``
+            sets a short OpenMP spin (GOMP_SPINCOUNT=10000) unless the environment sets one; on
+            cores busy with other work, OMP_WAIT_POLICY=PASSIVE or threads=1 may cost less.
+        workers: worker processes, each running whole models (0 = one per available core, at
+            most 8; 1 = everything in this process). With more than one, each worker's torch
+            runs ``threads`` threads (0 = 1): the timing table is then of one thread per
+            episode.
+        progress: show a progress bar.
+        plots: draw the PNG plots (matplotlib, Agg).
+    """
+
+    run: str = field(kw_only=True)
+    out_root: Path = Path("outputs/eval")
+    methods: tuple[str, ...] = names_setting("methods", tuple(METHODS))
+    datasets: tuple[str, ...] = names_setting("dataset", (), key="dataset", config_default=None)
+    data_dir: Path = Path("data/generated/synthetic")
+    mesh_dir: Path | None = setting(None, convert=_optional_path)
+    limit: int | None = setting(
+        None, check=lambda v: v is None or v >= 1, allowed="null or an integer >= 1"
+    )
+    # The schema's default group is the group's own schema defaults ({}): a camera cannot be
+    # written back as its YAML (conf/camera/ composes it into prepare.camera).
+    prepare: PrepareSettings = setting(factory=PrepareSettings, config_default={})
+    viewspaces: tuple[str, ...] = names_setting("viewspace", VIEWSPACES, key="viewspace")
+    start_views: tuple[int, ...] = setting(
+        DEFAULT_START_VIEWS, check=lambda v: len(v) >= 1, allowed="non-empty"
+    )
+    n_views: int = setting(EPISODE_VIEWS, check=_at_least(2), allowed="an integer >= 2")
+    checkpoints: dict[str, str] = setting(factory=dict)
+    hull: PlannerSettings = setting(factory=PlannerSettings)
+    ig: VolumetricSettings = setting(factory=VolumetricSettings)
+    ig_scorer: Path | None = setting(None, convert=_optional_path)
+    disturb: DisturbSettings = setting(factory=DisturbSettings)
+    random_repeats: int = setting(10, check=_at_least(1), allowed="an integer >= 1")
+    seed: int = 0
+    threads: int = setting(0, check=_at_least(0), allowed="an integer >= 0 (0 = torch's default)")
+    workers: int = setting(
+        1, check=_at_least(0), allowed="an integer >= 0 (0 = one per available core, at most 8)"
+    )
+    progress: bool = True
+    plots: bool = True
+
+    @property
+    def out_dir(self) -> Path:
+        """The run folder, ``<out_root>/<run>``."""
+        return Path(self.out_root) / self.run
+
+    def scorer_file(self) -> Path:
+        """The learned score ``ig_learned`` runs with: ``ig_scorer``, or the shipped one."""
+        return self.ig_scorer if self.ig_scorer is not None else SHIPPED_SCORER
+
+    def __post_init__(self) -> None:
+        unknown_ckpt = sorted(set(self.checkpoints) - set(NETWORK_INPUTS))
+        if unknown_ckpt:
+            raise EvalConfigError(
+                f"checkpoints: unknown {unknown_ckpt}; allowed: {', '.join(NETWORK_INPUTS)}"
+            )
+        if not self.datasets:  # null: derived from mesh_dir
+            derived = ("unseen", "meshes") if self.mesh_dir else ("unseen",)
+            object.__setattr__(self, "datasets", derived)
+        _allowed("methods", self.methods, tuple(METHODS))
+        _allowed("dataset", self.datasets, DATASETS)
+        _allowed("viewspace", self.viewspaces, VIEWSPACES)
+        missing = sorted(set(NETWORK_INPUTS) & set(self.methods) - set(self.checkpoints))
+        if missing:
+            raise EvalConfigError(
+                f"checkpoints: no entry for {missing}; give checkpoints.<method>=<path of best.pt>"
+            )
+        if "meshes" in self.datasets and self.mesh_dir is None:
+            raise EvalConfigError("dataset=meshes needs mesh_dir=<folder of mesh files>")
+        check_ranges(self)
+        if not isinstance(self.hull.dilate, bool):
+            raise EvalConfigError(f"hull.dilate={self.hull.dilate!r}: must be true or false")
+        for vs in self.viewspaces:
+            check_views("start_views", self.start_views, vs, len(get_viewspace(vs)))
+        if self.disturb.checks and self.check_viewspaces and not self.check_start_views:
+            raise EvalConfigError(
+                f"disturb.start_views={list(self.disturb.start_views)}: none of them is in "
+                f"start_views={list(self.start_views)}; the checks compare with the undisturbed "
+                "episodes from the same start views (give disturb.start_views=null for all)"
+            )
+        if self.mesh_dir is not None and not Path(self.mesh_dir).is_dir():
+            raise EvalConfigError(f"mesh_dir={str(self.mesh_dir)!r}: no such folder")
+
+    @property
+    def check_viewspaces(self) -> tuple[str, ...]:
+        """The viewspaces of the disturbance checks: ``disturb.viewspaces`` also evaluated."""
+        return tuple(v for v in self.disturb.viewspaces if v in self.viewspaces)
+
+    @property
+    def check_start_views(self) -> tuple[int, ...]:
+        """The start views of the disturbance checks: ``start_views`` also in
+        ``disturb.start_views`` (all of them when that is null)."""
+        chosen = self.disturb.start_views
+        return tuple(v for v in self.start_views if chosen is None or v in chosen)
+
+    def stored(self) -> dict[str, Any]:
+        """The settings as ``results.json`` and the episode log's identity store them.
+
+        The layout predates the nested YAML and stays, so that runs stay comparable and
+        resumable: ``out_dir`` for ``run`` and ``out_root``; the camera's ``width``, ``height``
+        and ``focal`` inside ``prepare``; the ``disturb`` group flat, as ``checks``,
+        ``disturb_viewspaces``, ``disturb_start_views`` (resolved: null is ``start_views``),
+        ``disturb_radius`` and ``noise_sigmas``. Every other field keeps its name, in field
+        order (values as :func:`dataclasses.asdict` gives them: paths, tuples).
+        """
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.name == "run":
+                out["out_dir"] = self.out_dir
+            elif f.name == "out_root":
+                continue
+            elif f.name == "prepare":
+                out["prepare"] = _stored_prepare(value)
+            elif f.name == "disturb":
+                out.update(
+                    checks=value.checks,
+                    disturb_viewspaces=value.viewspaces,
+                    disturb_start_views=(
+                        self.start_views if value.start_views is None else value.start_views
+                    ),
+                    disturb_radius=value.radius,
+                    noise_sigmas=value.noise,
+                )
+            elif dataclasses.is_dataclass(value):
+                out[f.name] = dataclasses.asdict(value)
+            else:
+                out[f.name] = dict(value) if isinstance(value, dict) else value
+        return out
+
+
+def _stored_prepare(prepare: PrepareSettings) -> dict[str, Any]:
+    """``prepare`` as :meth:`EvalSettings.stored` gives it: the camera as width, height, focal."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(prepare):
+        value = getattr(prepare, f.name)
+        if f.name == "camera":
+            out.update(width=value.width, height=value.height, focal=value.fx)
+        else:
+            out[f.name] = value
+    return out
+
+
+#: ``python -m nbv.eval``: the schema ``eval_schema`` and the builder of :class:`EvalSettings`.
+ENTRY = Entry(
+    "eval_schema",
+    EvalSettings,
+    extra=(("protocol", ProtocolConfig), ("paths", PathsConfig)),
+)

@@ -1,35 +1,53 @@
-"""``python -m nbv.eval.curve <run folder> ... [--out outputs/curve]``: the learning curve of a
-learner over the number of training models.
+"""``python -m nbv.eval.curve runs=[<run folder>,...] [out=outputs/curve]``: the learning curve
+of a learner over the number of training models.
+
+Settings: ``conf/curve.yaml`` (declared by :class:`CurveSettings`). The run folders are read
+before any evaluation: one that is not a training run, or runs of two kinds, end the command
+with one line on stderr and exit status 2 (:mod:`nbv.config.cli`).
 
 Each run folder is a ``python -m train.conditioned`` run (``max_models=N``; its ``best.pt`` plays
-as ``vcnbv``, or as ``vcnbv_map`` when it reads map features) or a ``python -m train.scorer`` run
-(its ``scorer.json`` plays as ``ig_learned``); the folders of one curve are of one kind. Each
+as the viewspace-conditioned network method, ``vcnbv``, or ``vcnbv_map`` when it reads map
+features) or a ``python -m train.scorer`` run (its ``scorer.json`` plays as the learned-score
+method, ``ig_learned``); the folders of one curve are of one kind. Each
 plays the unseen categories on both viewspaces (``nbv.eval``, the same episodes as ``make
-eval``), and random, spread and the oracle play them once, as horizontal lines. Written to
-``--out``: ``curve.md`` (a table: models, chosen epoch, the validation score the run chose by,
-unseen AUC, minus spread with a 95 % interval, models resampled), ``curve.png`` and the
-evaluations themselves (``eval_*``; rerunning reuses what they hold).
+eval``), and the baselines (random, spread and the oracle) play them once, as horizontal lines.
+Written to ``out``: ``curve.md`` (a table: models, chosen epoch, the validation score the run
+chose by, unseen AUC, minus spread with a 95 % interval, models resampled), ``curve.png`` and
+the evaluations themselves (``eval_*``; rerunning reuses what they hold).
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
+from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from nbv.eval.config import EvalSettings
+from nbv.config.cli import command
+from nbv.config.schema import PathsConfig
+from nbv.config.settings import Entry, setting
+from nbv.eval.config import VIEWSPACES, DisturbSettings, EvalSettings
 from nbv.eval.evaluate import run as run_eval
 from nbv.models.conditioned import load_conditioned
 from nbv.planning.scorer import load_scorer
+from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean
 
+PROG = "nbv.eval.curve"
 log = logging.getLogger("nbv.eval.curve")
-VIEWSPACES = ("original", "permuted")
-BASELINES = ("random", "spread", "oracle")
+#: The reference lines: the methods with neither a network nor a planner (random, spread, the
+#: oracle), in registry order.
+BASELINES = tuple(m.name for m in METHODS.values() if m.network_input is None and not m.planner)
+#: The viewspace-conditioned network methods: the plain one, then the one reading map features
+#: (the registry's order; it has no attribute for the map features yet).
+CONDITIONED = tuple(m for m, kind in NETWORK_INPUTS.items() if kind == "directions")
+#: The method a ``scorer.json`` plays as (the registry's one method ranking by a score file).
+(LEARNED_SCORE,) = SCORED
 
 
 def _episodes(folder: Path) -> list[dict]:
@@ -46,10 +64,15 @@ def _auc_by_episode(episodes: list[dict], method: str, viewspace: str) -> dict[t
     return {k: float(np.mean(v)) for k, v in out.items()}
 
 
-def _evaluate(out: Path, name: str, methods: tuple[str, ...], data_dir: Path, **kw) -> Path:
+def _evaluate(
+    out: Path, name: str, methods: tuple[str, ...], data_dir: Path,
+    checkpoints: Mapping[str, str], **kw: Any,
+) -> Path:  # fmt: skip
     folder = out / f"eval_{name}"
-    settings = EvalSettings(out_dir=folder, methods=methods, data_dir=data_dir, checks=(),
-                            plots=False, progress=False, **kw)  # fmt: skip
+    kw = {"checkpoints": dict(checkpoints), **kw}  # a conditioned run's own replaces them
+    settings = EvalSettings(run=folder.name, out_root=out, methods=methods, data_dir=data_dir,
+                            disturb=DisturbSettings(checks=()), plots=False, progress=False,
+                            **kw)  # fmt: skip
     run_eval(settings)
     return folder
 
@@ -60,13 +83,14 @@ def _learner(run: Path) -> tuple[str, dict, dict]:
     scorer = run / "scorer.json"
     if scorer.is_file():
         info = load_scorer(scorer).info
-        return "ig_learned", {"ig_scorer": scorer}, {
+        return LEARNED_SCORE, {"ig_scorer": scorer}, {
             "models": int(info["train_models"]), "epoch": int(info["epoch"]),
             "validation": f"{info['val_captured']:.3f} (ig {info['val_captured_ig']:.3f})",
         }  # fmt: skip
     net, extra = load_conditioned(run / "best.pt")
     chosen = extra["rows"][int(extra["epoch"])]
-    method = "vcnbv_map" if net.config.map_features else "vcnbv"
+    plain, mapped = CONDITIONED
+    method = mapped if net.config.map_features else plain
     return method, {"checkpoints": {method: str(run / "best.pt")}}, {
         "models": int(extra.get("train_models") or extra["settings"].get("max_models") or 32),
         "epoch": int(extra["epoch"]) + 1,
@@ -74,20 +98,44 @@ def _learner(run: Path) -> tuple[str, dict, dict]:
     }  # fmt: skip
 
 
-def curve(runs: list[Path], out: Path, data_dir: Path) -> list[dict]:
-    """Evaluate every run and the baselines; returns one row per run (fewest models first)."""
-    base = _episodes(_evaluate(out, "baselines", BASELINES, data_dir))
-    learners = [_learner(run) for run in runs]
-    kinds = {method for method, _, _ in learners}
+def learners(runs: list[Path]) -> list[tuple[str, dict, dict]]:
+    """:func:`_learner` of every run folder.
+
+    Raises:
+        ValueError: a folder that is not a training run (no usable ``best.pt``), or runs that
+            play as different methods.
+    """
+    found = [_learner(run) for run in runs]
+    kinds = {method for method, _, _ in found}
     if len(kinds) > 1:
         raise ValueError(f"the runs of one curve must be of one kind, got {sorted(kinds)}")
+    return found
+
+
+def curve(
+    runs: list[Path], out: Path, data_dir: Path, checkpoints: Mapping[str, str] | None = None
+) -> list[dict]:
+    """Evaluate every run and the baselines; returns one row per run (fewest models first).
+
+    Args:
+        runs: the run folders (:func:`learners`).
+        out: the output folder.
+        data_dir: the dataset whose unseen categories are played.
+        checkpoints: the network checkpoints the evaluations record (``nbv.eval``'s,
+            ``paths.checkpoints``; no evaluation runs them): they are part of an evaluation's
+            identity, so a rerun resumes the evaluations of an earlier one. A conditioned run's
+            evaluation records its own checkpoint alone.
+    """
+    checkpoints = checkpoints or {}
+    trained = learners(runs)
+    base = _episodes(_evaluate(out, "baselines", BASELINES, data_dir, checkpoints))
     rows = []
-    for run, (method, kw, start) in zip(runs, learners, strict=True):
-        episodes = _episodes(_evaluate(out, run.name, (method,), data_dir, **kw))
+    for run, (method, kw, start) in zip(runs, trained, strict=True):
+        episodes = _episodes(_evaluate(out, run.name, (method,), data_dir, checkpoints, **kw))
         row = {"run": str(run), "method": method, **start}
         for vs in VIEWSPACES:
             net = _auc_by_episode(episodes, method, vs)
-            spread = _auc_by_episode(base, "spread", vs)
+            spread = _auc_by_episode(base, SPREAD.name, vs)
             shared = sorted(set(net) & set(spread))
             diff = bootstrap_mean([net[k] - spread[k] for k in shared], [k for k, _ in shared])
             row[f"auc_{vs}"] = float(np.mean([net[k] for k in shared]))
@@ -107,7 +155,7 @@ def _write(out: Path, rows: list[dict], lines: dict[str, float]) -> None:
     import matplotlib.pyplot as plt
 
     method = rows[0]["method"]
-    validation = ("val AUC orig / perm" if method.startswith("vcnbv")
+    validation = ("val AUC orig / perm" if METHODS[method].network_input is not None
                   else "val share of the best gain")  # fmt: skip
     table = md_table(
         ["training models", "epoch", validation, "unseen AUC orig / perm",
@@ -136,18 +184,46 @@ def _write(out: Path, rows: list[dict], lines: dict[str, float]) -> None:
     plt.close(fig)
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(prog="nbv.eval.curve", description=__doc__.split("\n\n")[0])
-    parser.add_argument("runs", nargs="+", type=Path,
-                        help="train.conditioned or train.scorer run folders")  # fmt: skip
-    parser.add_argument("--out", type=Path, default=Path("outputs/curve"))
-    parser.add_argument("--data-dir", type=Path, default=Path("data/generated/synthetic"))
-    args = parser.parse_args()
-    logging.basicConfig(level=logging.INFO)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for row in curve(args.runs, args.out, args.data_dir):
+@dataclass(frozen=True)
+class CurveSettings:
+    """The runs of one learning curve and where it is written (``conf/curve.yaml``).
+
+    Attributes:
+        runs: the run folders (one or more), all of ``python -m train.conditioned`` or all of
+            ``python -m train.scorer``, e.g. one per ``max_models``.
+        out: the output folder: ``curve.md``, ``curve.png``, the evaluations ``eval_*`` (a rerun
+            reuses what they hold) and the log ``curve.log``.
+        data_dir: a dataset folder made by ``make dataset``; its unseen categories are played.
+    """
+
+    runs: tuple[Path, ...] = setting(check=lambda v: len(v) >= 1, allowed="one or more run folders")
+    out: Path = Path("outputs/curve")
+    data_dir: Path = Path("data/generated/synthetic")
+
+
+#: ``python -m nbv.eval.curve``: the schema ``curve_schema`` and the builder.
+ENTRY = Entry("curve_schema", CurveSettings, extra=(("paths", PathsConfig),))
+
+
+def start(cfg: Any) -> tuple[CurveSettings, dict[str, str]]:
+    """The settings and the run folders, checked (:func:`learners`) before any evaluation, and
+    the shared network checkpoints (``paths.checkpoints``) the evaluations record."""
+    from omegaconf import OmegaConf
+
+    s = ENTRY.build(cfg)
+    learners(list(s.runs))
+    return s, OmegaConf.to_container(cfg.paths.checkpoints, resolve=True)
+
+
+def finish(started: tuple[CurveSettings, dict[str, str]]) -> None:
+    """Evaluate; print each row as one JSON line on stdout."""
+    s, checkpoints = started
+    s.out.mkdir(parents=True, exist_ok=True)
+    for row in curve(list(s.runs), s.out, s.data_dir, checkpoints):
         print(json.dumps(row))
 
+
+main = command(PROG, "curve", start, finish)
 
 if __name__ == "__main__":
     main()

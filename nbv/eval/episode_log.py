@@ -20,7 +20,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from dataclasses import asdict
 from pathlib import Path
 
 from nbv.eval.config import EvalSettings
@@ -54,14 +53,15 @@ def identity(settings: EvalSettings, checkpoints: list[Path], data_dirs: list[Pa
     """A hash of what decides the episodes.
 
     Args:
-        settings: the evaluation settings.
+        settings: the evaluation settings (in the layout they are stored in:
+            :meth:`~nbv.eval.config.EvalSettings.stored`).
         checkpoints: the network checkpoint files that will run (their bytes are hashed).
         data_dirs: the dataset folders evaluated (file names, sizes and mtimes are hashed).
 
     Returns:
         64 hex digits.
     """
-    values = {k: v for k, v in asdict(settings).items() if k not in _NOT_IDENTITY}
+    values = {k: v for k, v in settings.stored().items() if k not in _NOT_IDENTITY}
     files = []
     for folder in data_dirs:
         for path in sorted(Path(folder).glob("*.h5")):

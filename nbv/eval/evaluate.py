@@ -22,7 +22,6 @@ from typing import NamedTuple
 
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
-from nbv.assets.weights import shipped_weights
 from nbv.dataset.reader import Dataset
 from nbv.eval.config import EvalSettings
 from nbv.eval.disturb import disturbed, noise_check
@@ -30,7 +29,6 @@ from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
 from nbv.planning.scorer import load_scorer
-from nbv.policies.conditioned import ConditionedPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     METHODS,
@@ -196,7 +194,8 @@ def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, Networ
 def load_networks(
     settings: EvalSettings, n_views: int
 ) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
-    """The selected network methods' checkpoints: (method -> policy, method -> skip reason)."""
+    """The selected network methods' checkpoints, as they are (no fallback to the shipped
+    weights: :func:`with_shipped_weights`): (method -> policy, method -> skip reason)."""
     from nbv.models.checkpoints import CheckpointError
 
     networks, skipped = {}, {}
@@ -205,10 +204,7 @@ def load_networks(
             continue
         path = settings.checkpoints[method]
         try:
-            if needed == "directions":
-                policy = ConditionedPolicy.from_checkpoint(path)
-            else:
-                policy = NetworkPolicy.from_checkpoint(path, n_views=n_views)
+            policy = METHODS[method].load(path, n_views)
         except CheckpointError as err:
             skipped[method] = str(err)
             continue
@@ -243,8 +239,8 @@ def _jobs(settings: EvalSettings, runnable: list[str]) -> list[Job]:
         for r in range(settings.random_repeats if METHODS[m].stochastic else 1)
     ]
     for vs in settings.check_viewspaces:
-        for check in settings.checks:
-            sigmas = settings.noise_sigmas if check == "position_noise" else (0.0,)
+        for check in settings.disturb.checks:
+            sigmas = settings.disturb.noise if check == "position_noise" else (0.0,)
             for sigma in sigmas:
                 name = noise_check(sigma) if check == "position_noise" else check
                 jobs += [
@@ -288,7 +284,7 @@ def run_model(task: ModelTask) -> ModelResult:
         rng = episode_rng(settings.seed, *names, *([job.repeat] if job.repeat else []))
         policy = METHODS[job.method].build(task.ctx, rng)
         if job.kind is not None:
-            policy = disturbed(job.kind, policy, rng, settings.disturb_radius, job.sigma)
+            policy = disturbed(job.kind, policy, rng, settings.disturb.radius, job.sigma)
         records.append(
             run_record(model, job.viewspace, job.start, job.method, policy, task.dataset,
                        settings.n_views, job.check, job.repeat)
@@ -315,14 +311,20 @@ def worker_count(settings: EvalSettings) -> int:
 
 
 def with_shipped_weights(settings: EvalSettings) -> EvalSettings:
-    """The settings with each selected network's missing checkpoint replaced by the weights the
-    package ships for it (:mod:`nbv.assets.weights`), when it ships any."""
+    """The settings with each selected network's checkpoint as the registry resolves it
+    (:meth:`~nbv.policies.registry.Method.weights`: the checkpoint when it exists, else the
+    weights the package ships, logged). A missing checkpoint the package ships nothing for stays:
+    :func:`load_networks` skips its method, naming the path."""
     found = {}
     for method, path in settings.checkpoints.items():
-        shipped = shipped_weights(method)
-        if method in settings.methods and not Path(path).exists() and shipped is not None:
-            log.info("%s: no checkpoint at %s; using the shipped weights %s", method, path, shipped)
-            found[method] = str(shipped)
+        if method not in settings.methods:
+            continue
+        try:
+            weights = METHODS[method].weights(path)
+        except ValueError:  # no checkpoint and nothing shipped: skipped when loaded
+            continue
+        if weights != Path(path):
+            found[method] = str(weights)
     if not found:
         return settings
     return dataclasses.replace(settings, checkpoints={**settings.checkpoints, **found})

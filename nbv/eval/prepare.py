@@ -14,10 +14,9 @@ import json
 from pathlib import Path
 
 from nbv.assets.meshes import MESH_SUFFIXES
-from nbv.dataset.config import Settings
 from nbv.dataset.generate import generate
+from nbv.dataset.generation import GenerationSettings, Renderer
 from nbv.eval.config import PrepareSettings
-from nbv.geometry.camera import Intrinsics
 
 #: Written in a prepared folder once the dataset is complete.
 DONE_FILE = "prepared.json"
@@ -44,7 +43,7 @@ def identity(mesh_dir: Path, settings: PrepareSettings) -> dict:
         "mesh_dir": str(folder),
         "files": files,
         "backend": settings.backend,
-        "camera": [settings.width, settings.height, settings.focal],
+        "camera": [settings.camera.width, settings.camera.height, settings.camera.fx],
         "n_gt": settings.n_gt,
         "eps": settings.eps,
         "points_per_view": settings.points_per_view,
@@ -77,17 +76,16 @@ def prepare_meshes(
     if done.exists():
         return out, [tuple(f) for f in json.loads(done.read_text())["failures"]]
     summary = generate(
-        Settings(
+        GenerationSettings(
             out_dir=out,
             source="folder",
             root=str(mesh_dir),
             seed=settings.seed,
-            intrinsics=Intrinsics.centred(settings.width, settings.height, settings.focal),
+            intrinsics=settings.camera,
             n_gt=settings.n_gt,
             eps=settings.eps,
             points_per_view=settings.points_per_view,
-            backend=settings.backend,
-            blender=settings.blender,
+            renderer=Renderer(backend=settings.backend, blender=settings.blender),
             progress=progress,
         )
     )

@@ -1,5 +1,9 @@
-"""``python -m nbv.eval.ranking [--methods ...] [--out outputs/ranking]``: how well each method's
-view scores rank the true coverage gains, on the evaluation's models.
+"""``python -m nbv.eval.ranking [methods=[...]] [out=outputs/ranking] [key=value]``: how well each
+method's view scores rank the true coverage gains, on the evaluation's models.
+
+Settings: ``conf/ranking.yaml`` (declared by :class:`RankingSettings`). A refused setting or
+input (a method without per-view scores, a missing dataset, an unusable checkpoint) ends with
+one line on stderr and exit status 2, and leaves no output folder behind (:mod:`nbv.config.cli`).
 
 The states are the oracle's episodes (the evaluation's start views, each viewspace) after 1, ...,
 ``n_views - 1`` captured views: the same states for every method. Each method scores the states
@@ -14,7 +18,7 @@ picks its view by. For each state:
   (:func:`~nbv.utils.ranking.split_half_reliability`): late in an episode a view gains a
   handful of points, and their order is then largely the sampling's.
 
-Written to ``--out``: ``ranking.md`` (mean Spearman with a 95 % interval resampling the models;
+Written to ``out``: ``ranking.md`` (mean Spearman with a 95 % interval resampling the models;
 minus spread, paired on the same states; best-view hits; Spearman per category, or per model
 for a mesh folder; Spearman per number of captured views beside the truth's reliability) and
 ``ranking.json`` (every state's values). Methods without per-view scores (the oracle, the
@@ -23,16 +27,19 @@ one-shot hull planners) are refused with the list of those that have them.
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import json
 import logging
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from nbv.config.cli import command
+from nbv.config.schema import PathsConfig
+from nbv.config.settings import Entry, setting
 from nbv.dataset.records import ModelData, score_functions
-from nbv.eval.config import EvalSettings
+from nbv.eval.config import DisturbSettings, EvalSettings, names_setting
 from nbv.eval.evaluate import (
     exclude_selection,
     load_networks,
@@ -40,18 +47,45 @@ from nbv.eval.evaluate import (
     open_datasets,
     with_shipped_weights,
 )
+from nbv.geometry.camera import Intrinsics
+from nbv.geometry.scores import DEFAULT_EPS
 from nbv.planning.scorer import load_scorer
+from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy
-from nbv.policies.episode import EpisodeState
-from nbv.policies.registry import METHODS, SCORED, MethodContext
+from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
+from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD, MethodContext
 from nbv.utils.markdown import md_table
 from nbv.utils.ranking import best_view_hit, spearman_per_sample, split_half_reliability
 from nbv.utils.stats import bootstrap_mean
 
+PROG = "nbv.eval.ranking"
 log = logging.getLogger("nbv.eval.ranking")
+
+
+def _ranked() -> tuple[str, ...]:
+    """The registry's methods whose policies score every view (``view_scores``), in its order.
+
+    A network method's policy has them (both network policies define ``view_scores``); any
+    other method's policy is built once, with default settings, to see.
+    """
+    ctx = MethodContext({}, PlannerSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS)
+    return tuple(
+        m.name
+        for m in METHODS.values()
+        if m.network_input is not None
+        or callable(getattr(m.build(ctx, np.random.default_rng(0)), "view_scores", None))
+    )
+
+
 #: The methods whose policies have per-view scores (``view_scores``).
-RANKED = ("random", "spread", "pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map", "ig", "ig_learned")
-DEFAULT_METHODS = ("random", "spread", "ig", "ig_learned", "vcnbv", "vcnbv_map")
+RANKED = _ranked()
+#: The methods ranked when none are given: the PCNBV networks (inputs points and signature) are
+#: left out (their scores do not rank the unseen models' views); the methods without a network
+#: first, then the viewspace-conditioned networks.
+DEFAULT_METHODS = (
+    *(m for m in RANKED if m not in NETWORK_INPUTS),
+    *(m for m in RANKED if NETWORK_INPUTS.get(m) == "directions"),
+)
 
 
 def oracle_states(model: ModelData, viewspace: str, start: int, n_views: int) -> list[EpisodeState]:
@@ -145,7 +179,7 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     captured = np.array([r["captured"] for r in records])
     by = "category" if len({r["category"] for r in records}) > 1 else "model"
     groups = np.array([r[by] for r in records])
-    base = values("spread") if "spread" in methods else None
+    base = values(SPREAD.name) if SPREAD.name in methods else None
     names = sorted(set(groups))
     rows = []
     for name in methods:
@@ -156,7 +190,7 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
                "hits": float(np.mean([r["hit"][name] for r in records])), "by": by,
                "by_group": {g: _mean(rho[groups == g]) for g in names},
                "by_captured": _by_captured(rho, captured)}  # fmt: skip
-        if base is not None and name != "spread":
+        if base is not None and name != SPREAD.name:
             both = ok & np.isfinite(base)
             row["minus_spread"] = bootstrap_mean(rho[both] - base[both], models[both])
         rows.append(row)
@@ -217,35 +251,71 @@ def write(out: Path, records: list[dict], rows: list[dict], truth: dict | None) 
     (out / "ranking.md").write_text("\n".join([*lines, ""]))
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(prog="nbv.eval.ranking", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--methods", nargs="+", default=list(DEFAULT_METHODS),
-                        help=f"any of {', '.join(RANKED)}")  # fmt: skip
-    parser.add_argument("--out", type=Path, default=Path("outputs/ranking"))
-    parser.add_argument("--data-dir", type=Path, default=Path("data/generated/synthetic"))
-    parser.add_argument("--dataset", default="unseen", help="unseen, train or meshes")
-    parser.add_argument("--mesh-dir", type=Path, default=None)
-    parser.add_argument("--limit", type=int, default=None, help="at most this many models")
-    parser.add_argument("--checkpoint", action="append", default=[], metavar="METHOD=PATH",
-                        help="a network method's checkpoint (default: nbv.eval's)")  # fmt: skip
-    args = parser.parse_args()
-    logging.basicConfig(level=logging.INFO)
-    try:
-        settings = EvalSettings(out_dir=args.out, methods=tuple(args.methods),
-                                datasets=(args.dataset,), data_dir=args.data_dir,
-                                mesh_dir=args.mesh_dir, limit=args.limit, checks=())  # fmt: skip
-        given = dict(c.split("=", 1) for c in args.checkpoint if "=" in c)
-        if len(given) != len(args.checkpoint):
-            raise ValueError(f"--checkpoint {args.checkpoint}: each must be METHOD=PATH")
-        settings = dataclasses.replace(settings, checkpoints={**settings.checkpoints, **given})
-        records = ranking(settings)
-    except ValueError as err:
-        parser.exit(2, f"nbv.eval.ranking: {err}\n")
-    rows = summary(records, settings.methods)
-    write(args.out, records, rows, reliability_summary(records))
+@dataclass(frozen=True)
+class RankingSettings:
+    """What ``python -m nbv.eval.ranking`` ranks, and where it writes (``conf/ranking.yaml``).
+
+    The episodes are ``python -m nbv.eval``'s defaults (:class:`~nbv.eval.config.EvalSettings`):
+    its start views, both viewspaces, 10 views, seed 0, its planner settings.
+
+    Attributes:
+        methods: the methods to rank (a name or a list), any of those with per-view scores
+            (:data:`RANKED`); by default those without a network, then the
+            viewspace-conditioned networks (:data:`DEFAULT_METHODS`).
+        out: the output folder: ``ranking.md``, ``ranking.json`` and the log ``ranking.log``.
+        data_dir: a dataset folder made by ``make dataset``.
+        dataset: the models (one of ``nbv.eval``'s ``dataset``): ``unseen``, ``test`` or
+            ``meshes`` (with ``mesh_dir``).
+        mesh_dir: a folder of mesh files (``dataset=meshes``); null = none.
+        limit: at most this many models (spread over the categories); null = all.
+        checkpoints: network method name -> its checkpoint (``checkpoints.vcnbv_map=<best.pt>``);
+            a checkpoint that is not there falls back to the weights the package ships.
+    """
+
+    methods: tuple[str, ...] = names_setting("methods", DEFAULT_METHODS)
+    out: Path = Path("outputs/ranking")
+    data_dir: Path = Path("data/generated/synthetic")
+    dataset: str = "unseen"
+    mesh_dir: Path | None = None
+    limit: int | None = setting(
+        None, check=lambda v: v is None or v >= 1, allowed="null or an integer >= 1"
+    )
+    checkpoints: dict[str, str] = setting(factory=dict)
+
+    def __post_init__(self) -> None:
+        self.evaluation()  # its checks: names, checkpoint entries, mesh_dir
+
+    def evaluation(self) -> EvalSettings:
+        """The evaluation whose models and episodes are ranked (no disturbance checks)."""
+        return EvalSettings(
+            run=self.out.name, out_root=self.out.parent, methods=self.methods,
+            datasets=(self.dataset,), data_dir=self.data_dir, mesh_dir=self.mesh_dir,
+            limit=self.limit, checkpoints=dict(self.checkpoints),
+            disturb=DisturbSettings(checks=()),
+        )  # fmt: skip
+
+
+#: ``python -m nbv.eval.ranking``: the schema ``ranking_schema`` and the builder.
+ENTRY = Entry("ranking_schema", RankingSettings, extra=(("paths", PathsConfig),))
+
+
+def start(cfg: Any) -> tuple[RankingSettings, list[dict]]:
+    """The settings, checked, and every state's record: a ValueError on the way (a method
+    without per-view scores, a missing dataset, an unusable checkpoint) refuses the run."""
+    s = ENTRY.build(cfg)
+    return s, ranking(s.evaluation())
+
+
+def finish(started: tuple[RankingSettings, list[dict]]) -> None:
+    """Write the tables and log each method's mean Spearman."""
+    s, records = started
+    rows = summary(records, s.methods)
+    write(s.out, records, rows, reliability_summary(records))
     for r in rows:
         log.info("%s: Spearman %s over %d states", r["method"], r["spearman"].text(), r["states"])
 
+
+main = command(PROG, "ranking", start, finish)
 
 if __name__ == "__main__":
     main()

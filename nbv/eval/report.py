@@ -63,7 +63,7 @@ def _jsonable(value):
 def write_json(evaluation, path: Path) -> None:
     """``results.json``: settings, skipped methods, datasets, seconds, every episode."""
     data = {
-        "settings": _jsonable(asdict(evaluation.settings)),
+        "settings": _jsonable(evaluation.settings.stored()),
         "skipped": evaluation.skipped,
         "datasets": [_jsonable(asdict(d)) for d in evaluation.datasets],
         "seconds": evaluation.seconds,
@@ -298,7 +298,7 @@ def report_markdown(evaluation) -> str:
         lines += md_table(["dataset", "viewspace", "episodes", "AUC replan - one-shot", ""], rows)
 
     changes = auc_changes(records, s.seed)
-    lines += noise_table(changes, s.noise_sigmas)
+    lines += noise_table(changes, s.disturb.noise)
     changes = [r for r in changes if r["sigma"] is None]
     lines += ["", "## Disturbance checks (the paper's Fig. 18)", ""]
     if changes:
