@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import pytest
 from omegaconf import OmegaConf
@@ -126,3 +127,36 @@ def test_a_group_whose_default_holds_a_group_has_a_schema():
     first, second = schema(Deeper)(), schema(Deeper)()
     first.lists.append(3)
     assert second.lists == [1, 2]  # each instance gets its own copy of a mutable default
+
+
+@dataclass(frozen=True)
+class WithCamera:
+    camera: Camera = setting(
+        factory=lambda: Camera(640, 500.0),
+        config=dict[str, float],
+        config_default={"width": 640, "focal": 500.0},
+        convert=lambda d: Camera(int(d["width"]), float(d["focal"])),
+    )
+
+
+@dataclass(frozen=True)
+class HoldsCameraGroup:
+    group: WithCamera = field(default_factory=WithCamera)
+    names: tuple[str, ...] = setting((), config=Any, config_default=[], convert=lambda v: named(v))
+
+
+def named(value):
+    if not isinstance(value, list):
+        raise ConfigError(f"names={value!r}: must be a list of names")
+    return tuple(value)
+
+
+def test_a_group_default_holding_a_field_with_its_own_yaml_form():
+    node = OmegaConf.structured(schema(HoldsCameraGroup))
+    assert node.group.camera == {"width": 640, "focal": 500.0}
+    assert build(HoldsCameraGroup, {}) == HoldsCameraGroup()
+
+
+def test_a_converter_message_that_names_its_key_is_not_named_twice():
+    with pytest.raises(ConfigError, match=r"^names=5: must be a list of names$"):
+        build(HoldsCameraGroup, {"names": 5})

@@ -176,9 +176,7 @@ class TrainSettings:
         "(none held out)",
     )
     score: ScoreSettings = setting(factory=ScoreSettings)
-    # The schema's default is the group schema's own (config_default={}): model.net's YAML form
-    # (NetConfig) is not the settings' dict.
-    model: ModelSettings = setting(factory=ModelSettings, config_default={})
+    model: ModelSettings = setting(factory=ModelSettings)
     seed: int = 0
     epochs: int = _at_least(4, 1)
     batch_size: int = _at_least(32, 1)

@@ -134,8 +134,24 @@ def _instance(node: type, values: Mapping[str, Any]) -> Any:
     return node(**kwargs)
 
 
+def _own_defaults(f: dataclasses.Field, kind: Any) -> bool:
+    """A group whose default is its class's own default: its schema's defaults say the same,
+    written the YAML's way (a field with its own YAML form, like a camera, cannot be written
+    back from the settings' value)."""
+    if not _is_settings(kind) or "config" in f.metadata or "config_default" in f.metadata:
+        return False
+    if f.default_factory is dataclasses.MISSING:
+        return False
+    try:
+        return f.default_factory() == kind()
+    except TypeError:  # a group with a required key
+        return False
+
+
 def _schema_field(f: dataclasses.Field, kind: Any) -> tuple[str, Any, Any]:
     ctype = f.metadata.get("config") or _config_type(kind)
+    if _own_defaults(f, kind):
+        return key_of(f), ctype, dataclasses.field(default_factory=ctype)
     default = _default_of(f)
     if _is_settings(ctype) and isinstance(default, dict):
         return (
@@ -245,7 +261,9 @@ def _construct(settings: type, values: Mapping[str, Any], prefix: str = "") -> A
             try:
                 value = f.metadata["convert"](value)
             except ValueError as err:
-                raise ConfigError(f"{prefix}{key}: {err}") from None
+                message = str(err)
+                named = message.startswith((f"{key}=", f"{key}:", f"{prefix}{key}"))
+                raise ConfigError(message if named else f"{prefix}{key}: {message}") from None
         else:
             value = _coerce(hints[f.name], value, prefix + key)
         check(f, value, prefix)

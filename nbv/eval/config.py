@@ -245,9 +245,7 @@ class EvalSettings:
     limit: int | None = setting(
         None, check=lambda v: v is None or v >= 1, allowed="null or an integer >= 1"
     )
-    # The schema's default group is the group's own schema defaults ({}): a camera cannot be
-    # written back as its YAML (conf/camera/ composes it into prepare.camera).
-    prepare: PrepareSettings = setting(factory=PrepareSettings, config_default={})
+    prepare: PrepareSettings = setting(factory=PrepareSettings)
     viewspaces: tuple[str, ...] = names_setting("viewspace", VIEWSPACES, key="viewspace")
     start_views: tuple[int, ...] = setting(
         DEFAULT_START_VIEWS, check=lambda v: len(v) >= 1, allowed="non-empty"
