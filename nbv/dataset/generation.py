@@ -17,7 +17,7 @@ from pathlib import Path
 from nbv.dataset.schema import SCHEMA_VERSION
 from nbv.dataset.sources import SOURCES
 from nbv.geometry.camera import Intrinsics
-from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT
+from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.render.job import BACKENDS
 from nbv.render.noise import DepthNoise
 from nbv.utils.fields import ConfigError, check, check_ranges, fields_of, setting
@@ -152,7 +152,7 @@ class GenerationSettings:
     n_gt: int = setting(DEFAULT_N_GT, **_at_least(1))
     eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
     points_per_view: int = setting(
-        2048, check=lambda v: v >= 0, allowed="an integer >= 0 (0 = all)"
+        DEFAULT_POINTS_PER_VIEW, check=lambda v: v >= 0, allowed="an integer >= 0 (0 = all)"
     )
     keep_depth: bool = False
     renderer: Renderer = field(default_factory=Renderer)

@@ -30,7 +30,7 @@ from nbv.config.schema import (
 )
 from nbv.config.settings import Entry, check_ranges, setting
 from nbv.geometry.camera import Intrinsics
-from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT
+from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.geometry.viewspace import get_viewspace
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
@@ -41,7 +41,6 @@ VIEWSPACES = ("original", "permuted")
 BACKENDS = ("raycast", "blender")
 # TODO(issue 28): one shared constant for the points kept per view (also nbv/plan/config.py
 # and nbv/dataset/generation.py); conf/protocol/ sets the value users get.
-POINTS_PER_VIEW = 2048
 
 #: The error of a setting that cannot be used (one class for every entry point).
 EvalConfigError = ConfigError
@@ -123,7 +122,7 @@ class PrepareSettings:
     n_gt: int = setting(DEFAULT_N_GT, check=_at_least(1), allowed="an integer >= 1")
     eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
     points_per_view: int = setting(
-        POINTS_PER_VIEW, check=_at_least(0), allowed="an integer >= 0 (0 = all)"
+        DEFAULT_POINTS_PER_VIEW, check=_at_least(0), allowed="an integer >= 0 (0 = all)"
     )
     seed: int = 0
 

@@ -59,7 +59,11 @@ class _Wrapper:
 
     @property
     def counts(self) -> dict[str, int]:
-        return getattr(self.inner, "counts", {})
+        return self.inner.counts
+
+    @property
+    def last_gains(self) -> list[float]:
+        return self.inner.last_gains
 
 
 @dataclass

@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from nbv.dataset.records import ModelData
-from nbv.policies.episode import run_episode
+from nbv.policies.episode import run_episode, stage_seconds
 from nbv.utils.seeding import named_rng
 
 
@@ -79,7 +79,7 @@ def episode_rng(seed: int, *names: str | int) -> np.random.Generator:
 
 def episode_timings(policy, decision_times: list[float]) -> dict[str, float]:
     """Seconds per stage summed over an episode, with ``total`` and ``online``."""
-    out = {k: float(np.sum(v)) for k, v in getattr(policy, "timings", {}).items()}
+    out = stage_seconds(policy)
     out["total"] = float(np.sum(decision_times))
     out["online"] = out["total"] - out.get("simulation", 0.0)
     return out
@@ -112,7 +112,7 @@ def run_record(
         auc=episode.auc,
         decision_times=[float(t) for t in episode.times],
         timings=episode_timings(policy, episode.times),
-        notes=sorted(set(getattr(policy, "notes", [])) | set(episode.notes)),
+        notes=sorted(set(policy.notes) | set(episode.notes)),
         repeat=int(repeat),
-        counts=dict(getattr(policy, "counts", {})),
+        counts=dict(policy.counts),
     )

@@ -31,6 +31,9 @@ from nbv.utils.bits import popcount, popcount_rows
 DEFAULT_EPS = 0.00707
 #: Ground-truth points sampled uniformly on each normalised mesh (PC-NBV's 16384).
 DEFAULT_N_GT = 16384
+#: Points a dataset keeps of each view (a seeded random subset; 0 keeps all). The coverage bits
+#: come from the full view; the policies see the kept points.
+DEFAULT_POINTS_PER_VIEW = 2048
 
 
 def _as_view_state(view_state: np.ndarray, n_views: int) -> np.ndarray:

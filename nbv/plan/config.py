@@ -18,7 +18,7 @@ from typing import Any
 from nbv.config.schema import CameraConfig, ConfigError, PathsConfig, ProtocolConfig, check_views
 from nbv.config.settings import Entry, check_ranges, setting
 from nbv.geometry.camera import Intrinsics
-from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT
+from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import EPISODE_VIEWS
@@ -143,7 +143,7 @@ class PlanSettings:
     camera: Intrinsics = setting(factory=Intrinsics, config=CameraConfig, convert=_camera)
     match_degrees: float = setting(2.0, check=lambda v: 0 <= v < 90, allowed="degrees in [0, 90)")
     points_per_view: int = setting(
-        2048, check=lambda v: v >= 0, allowed="an integer >= 0 (0 = all)"
+        DEFAULT_POINTS_PER_VIEW, check=lambda v: v >= 0, allowed="an integer >= 0 (0 = all)"
     )
     eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
     n_gt: int = setting(DEFAULT_N_GT, check=lambda v: v >= 1, allowed="an integer >= 1")

@@ -22,9 +22,9 @@ from nbv.geometry.hull import QhullFailure, hull_volume
 from nbv.plan.captures import write_captures
 from nbv.plan.config import PlanSettings
 from nbv.plan.frame import candidate_poses, object_frame
-from nbv.plan.method import GainRecorder, method_context, policy_rng, stage_seconds
+from nbv.plan.method import GainRecorder, method_context, policy_rng
 from nbv.plan.result import VIEWSPACE, PlanResult
-from nbv.policies.episode import run_episode
+from nbv.policies.episode import run_episode, stage_seconds
 from nbv.policies.registry import METHODS
 from nbv.render.raycast import render_raycast
 from nbv.utils.seeding import named_rng

@@ -4,7 +4,7 @@ The policy is the registry's (:data:`nbv.policies.registry.METHODS`), built from
 :func:`method_context` with the generator :func:`policy_rng` gives, so that a plan from captures
 is the evaluator's decision on the same views. After each decision the plan reads the policy's
 own predicted gains (:func:`predicted_gains`, :class:`GainRecorder`) and stage timings
-(:func:`stage_seconds`).
+(:func:`nbv.policies.episode.stage_seconds`).
 """
 
 from __future__ import annotations
@@ -101,8 +101,3 @@ class GainRecorder:
         gains, self.unit = predicted_gains(self.policy, chosen)
         self.gains += gains if gains is not None else [None] * len(chosen)
         return choice
-
-
-def stage_seconds(policy: Policy) -> dict[str, float]:
-    """Seconds of each of the policy's stages, summed over its decisions."""
-    return {k: float(np.sum(v)) for k, v in policy.timings.items()}

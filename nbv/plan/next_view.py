@@ -20,9 +20,9 @@ from nbv.geometry.viewspace import angular_distances
 from nbv.plan.captures import Capture, CaptureError, check_views_see, estimate_object, read_captures
 from nbv.plan.config import PlanSettings
 from nbv.plan.frame import ObjectFrame, candidate_poses, object_frame
-from nbv.plan.method import method_context, policy_rng, predicted_gains, stage_seconds
+from nbv.plan.method import method_context, policy_rng, predicted_gains
 from nbv.plan.result import VIEWSPACE, PlanResult
-from nbv.policies.episode import captured_state
+from nbv.policies.episode import captured_state, stage_seconds
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.utils.seeding import named_rng
 

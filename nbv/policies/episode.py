@@ -74,6 +74,11 @@ class Policy(Protocol):
     def __call__(self, state: EpisodeState) -> int | list[int]: ...
 
 
+def stage_seconds(policy: Policy) -> dict[str, float]:
+    """Seconds of each of the policy's stages, summed over its decisions so far."""
+    return {k: float(np.sum(v)) for k, v in policy.timings.items()}
+
+
 @dataclass
 class Episode:
     """The outcome of one episode.
