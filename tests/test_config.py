@@ -80,8 +80,7 @@ def composed(name: str, overrides: list[str] = (), hydra: bool = False):
 def build(name: str, cfg) -> list:
     """Every settings object the entry point builds from ``cfg``."""
     module = ENTRY_POINTS[name]
-    entry = getattr(module, "ENTRY", None)
-    settings = entry.build(cfg) if entry else module.settings_from_config(cfg)
+    settings = module.ENTRY.build(cfg)
     if name == "dataset":
         return [settings, settings.sample_settings()]
     if name == "train":
