@@ -132,7 +132,7 @@ def _untimed(value: object) -> object:
         return {
             k: _untimed(v)
             for k, v in value.items()
-            if not any(word in k for word in ("time", "seconds", "date", "created"))
+            if not any(word in k for word in ("time", "timing", "seconds", "date", "created"))
         }
     if isinstance(value, list):
         return [_untimed(v) for v in value]
