@@ -23,7 +23,7 @@ from nbv.models.checkpoints import (
     load_checkpoint,
     save_checkpoint,
 )
-from nbv.models.conditioned import CONDITIONED_FORMAT, load_conditioned, save_conditioned
+from nbv.models.view_conditioned import CONDITIONED_FORMAT, load_conditioned, save_conditioned
 from train.records import dataset_identity
 
 #: Checkpoint format -> its reader and writer.

@@ -15,7 +15,7 @@ from test_policies import save_tiny_checkpoint
 import nbv.dataset
 from nbv.geometry.scores import coverage_gains
 from nbv.models.checkpoints import CheckpointError
-from nbv.models.conditioned import (
+from nbv.models.view_conditioned import (
     ConditionedConfig,
     ViewConditionedNet,
     load_conditioned,
@@ -23,7 +23,7 @@ from nbv.models.conditioned import (
 )
 from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES
-from nbv.policies.conditioned import ConditionedPolicy
+from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
 from train.conditioned import (

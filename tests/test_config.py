@@ -34,8 +34,8 @@ import train.summary
 from nbv.assets.weights import shipped_weights
 from nbv.config.schema import ConfigError, describe
 from nbv.dataset.samples import SampleSettings
-from nbv.models.conditioned import ConditionedConfig
 from nbv.models.config import PCNBVConfig
+from nbv.models.view_conditioned import ConditionedConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"

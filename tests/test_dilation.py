@@ -10,7 +10,7 @@ from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import original_viewspace
 from nbv.planning.dilation import NearTriangles, dilate_view_sets, near_triangles
-from nbv.planning.hull import convex_hull, sample_on_hull
+from nbv.planning.hull_sampling import convex_hull, sample_on_hull
 from nbv.planning.view_sets import view_sets
 
 K = Intrinsics()

@@ -30,7 +30,7 @@ from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
 from nbv.eval.tables import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
-from nbv.planning.scorer import GainScorer, ScorerError, save_scorer
+from nbv.planning.gain_scorer import GainScorer, ScorerError, save_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.planning.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode

@@ -18,9 +18,9 @@ from test_policies import VOLUMETRIC, make_tiny_dataset
 import nbv.dataset
 from nbv.bench.volumetric import decision, numpy_ray_features, plain_decision
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
+from nbv.planning.gain_scorer import GainScorer, ScorerError, load_scorer, save_scorer
 from nbv.planning.information_gain import frontier, view_gains
 from nbv.planning.occupancy import OccupancyMap, OccupancySettings
-from nbv.planning.scorer import GainScorer, ScorerError, load_scorer, save_scorer
 from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, RAY_FEATURES, ray_features, view_features
 from nbv.policies.baselines import SpreadPolicy

@@ -23,7 +23,7 @@ from nbv.plan.method import policy_rng
 from nbv.plan.next_view import plan_captures
 from nbv.planning.information_gain import view_gains
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
-from nbv.policies.conditioned import ConditionedPolicy
+from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
 

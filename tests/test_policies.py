@@ -14,15 +14,15 @@ from datagen import SMALL_CAMERA
 import nbv.dataset
 from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
-from nbv.planning.hull import convex_hull
+from nbv.planning.gain_scorer import load_scorer
+from nbv.planning.hull_sampling import convex_hull
 from nbv.planning.planner import plan as sco_plan
 from nbv.planning.planner import plan_sph
-from nbv.planning.scorer import load_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
-from nbv.policies.conditioned import ConditionedPolicy
+from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
-from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy, thicken
+from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
@@ -65,9 +65,9 @@ def save_tiny_checkpoint(
     import torch
 
     from nbv.models.checkpoints import save_checkpoint
-    from nbv.models.conditioned import ConditionedConfig, ViewConditionedNet, save_conditioned
     from nbv.models.config import PCNBVConfig
     from nbv.models.pcnbv import PCNBV
+    from nbv.models.view_conditioned import ConditionedConfig, ViewConditionedNet, save_conditioned
     from nbv.planning.view_features import FEATURES
 
     torch.manual_seed(seed)

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from datagen import SMALL_CAMERA
 
-from nbv.planning.scorer import GainScorer, load_scorer
+from nbv.planning.gain_scorer import GainScorer, load_scorer
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_features import FEATURES
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
-from nbv.policies.conditioned import ConditionedPolicy
-from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
+from nbv.policies.conditioned_network import ConditionedPolicy
+from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy

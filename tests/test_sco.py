@@ -14,12 +14,12 @@ from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.sph import equiangular_directions, signature_with_centroid, unit_vectors
 from nbv.geometry.viewspace import original_viewspace
-from nbv.planning.hull import cameras_inside, convex_hull, sample_hull, sample_on_hull
+from nbv.planning.hull_sampling import cameras_inside, convex_hull, sample_hull, sample_on_hull
 from nbv.planning.planner import plan, plan_sph, sph_hull_points
 from nbv.planning.set_cover import greedy_max_coverage, pack_sets
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets
-from nbv.policies.hull import HullSCOPolicy
+from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.utils.bits import popcount_rows
 
 

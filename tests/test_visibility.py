@@ -8,7 +8,7 @@ from shapes import cube_corners, fibonacci_sphere
 
 from nbv.geometry.camera import Intrinsics, project, viewspace_poses
 from nbv.geometry.viewspace import original_viewspace
-from nbv.planning.hull import convex_hull, sample_on_hull
+from nbv.planning.hull_sampling import convex_hull, sample_on_hull
 from nbv.planning.view_sets import view_sets
 from nbv.planning.visibility import analytic_visibility, analytic_visibility_faces
 

@@ -1,4 +1,4 @@
-"""Training of the viewspace-conditioned network (:mod:`nbv.models.conditioned`).
+"""Training of the viewspace-conditioned network (:mod:`nbv.models.view_conditioned`).
 
 ``python -m train.conditioned [key=value ...]`` (``conf/train_conditioned.yaml``).
 
@@ -51,7 +51,7 @@ from nbv.config.settings import Entry, check_ranges, setting
 from nbv.dataset.records import ModelData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import coverage_gains
-from nbv.models.conditioned import (
+from nbv.models.view_conditioned import (
     ConditionedConfig,
     ViewConditionedNet,
     load_conditioned,
@@ -61,7 +61,7 @@ from nbv.planning.information_gain import candidate_voxels
 from nbv.planning.occupancy import OccupancyMap, OccupancySettings
 from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, unvisited_features
-from nbv.policies.conditioned import ConditionedPolicy, unit_directions
+from nbv.policies.conditioned_network import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.utils.selection import masked_argmax
@@ -128,7 +128,7 @@ class ConditionedSettings:
             on, e.g. ``[cabinet,lamp]``: the validation models (AUC, Spearman, the choice of
             best.pt) are then every model of these categories, which the network never sees,
             instead of the valid split of all of them. ``[]`` = the valid split.
-        net: the network's widths (:class:`nbv.models.conditioned.ConditionedConfig`), e.g.
+        net: the network's widths (:class:`nbv.models.view_conditioned.ConditionedConfig`), e.g.
             ``net.head_channels=[256,128]``; a null one keeps the default.
     """
 

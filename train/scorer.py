@@ -1,4 +1,4 @@
-"""Training of ``ig_learned``'s score (:mod:`nbv.planning.scorer`).
+"""Training of ``ig_learned``'s score (:mod:`nbv.planning.gain_scorer`).
 
 ``python -m train.scorer [key=value ...]`` (``conf/train_scorer.yaml``).
 
@@ -47,7 +47,7 @@ from nbv.config.cli import command
 from nbv.config.schema import ConfigError, PathsConfig
 from nbv.config.settings import Entry, check_ranges, setting
 from nbv.dataset.records import ViewData, offsets_of, score_functions
-from nbv.planning.scorer import GainScorer, save_scorer
+from nbv.planning.gain_scorer import GainScorer, save_scorer
 from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, view_features
 from nbv.policies.episode import EpisodeState

@@ -39,10 +39,10 @@ from nbv.geometry.scores import (
 from nbv.geometry.sph import equiangular_directions, signature, unit_vectors
 from nbv.geometry.union import UnionHulls
 from nbv.geometry.viewspace import original_viewspace
-from nbv.planning.hull import DEFAULT_N_SAMP, convex_hull, sample_hull
+from nbv.planning.gain_scorer import load_scorer
+from nbv.planning.hull_sampling import DEFAULT_N_SAMP, convex_hull, sample_hull
 from nbv.planning.planner import Plan
 from nbv.planning.planner import plan as sco_plan
-from nbv.planning.scorer import load_scorer
 from nbv.planning.set_cover import greedy_max_coverage
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets

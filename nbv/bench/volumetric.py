@@ -19,10 +19,10 @@ import numpy as np
 
 from nbv.bench.timing import best_time
 from nbv.geometry.camera import Intrinsics
+from nbv.planning.gain_scorer import GainScorer
 from nbv.planning.information_gain import candidate_segments, frontier
 from nbv.planning.occupancy import OccupancyMap, background_directions, log_odds_of
 from nbv.planning.raytrace import clip_to_box, drop_end_voxels, flat_index
-from nbv.planning.scorer import GainScorer
 from nbv.planning.settings import VolumetricSettings
 from nbv.policies.episode import captured_state
 from nbv.policies.learned_gain import LearnedGainPolicy

@@ -32,8 +32,8 @@ from nbv.config.schema import PathsConfig
 from nbv.config.settings import Entry, setting
 from nbv.eval.config import VIEWSPACES, DisturbSettings, EvalSettings
 from nbv.eval.evaluate import run as run_eval
-from nbv.models.conditioned import load_conditioned
-from nbv.planning.scorer import load_scorer
+from nbv.models.view_conditioned import load_conditioned
+from nbv.planning.gain_scorer import load_scorer
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean

@@ -25,7 +25,7 @@ import numpy as np
 from nbv.dataset.records import ModelData
 from nbv.eval.tables import paired_difference
 from nbv.policies.episode import EpisodeState
-from nbv.policies.hull import HullSCOPolicy
+from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import CHECKS
 from nbv.policies.volumetric import InformationGainPolicy

@@ -28,7 +28,7 @@ from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
-from nbv.planning.scorer import load_scorer
+from nbv.planning.gain_scorer import load_scorer
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     METHODS,

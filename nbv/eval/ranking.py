@@ -49,7 +49,7 @@ from nbv.eval.evaluate import (
 )
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.planning.scorer import load_scorer
+from nbv.planning.gain_scorer import load_scorer
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState

@@ -21,7 +21,7 @@ from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
 from nbv.utils.seeding import named_rng
 
 if TYPE_CHECKING:
-    from nbv.policies.conditioned import ConditionedPolicy
+    from nbv.policies.conditioned_network import ConditionedPolicy
     from nbv.policies.network import NetworkPolicy
 
 

@@ -2,7 +2,7 @@
 
 * :mod:`~nbv.planning.settings`: :class:`~nbv.planning.settings.PlannerSettings`, shared by the
   planner, the policies and the evaluation config.
-* :mod:`~nbv.planning.hull`: the hull and points drawn on it.
+* :mod:`~nbv.planning.hull_sampling`: the hull and points drawn on it.
 * :mod:`~nbv.planning.visibility`, :mod:`~nbv.planning.dilation`: which hull points a view sees,
   analytically, and their ``eps``-dilation.
 * :mod:`~nbv.planning.view_sets`: the view simulation (analytic or ray cast).

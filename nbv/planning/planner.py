@@ -10,7 +10,7 @@ from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.sph import equiangular_directions, signature_with_centroid, unit_vectors
-from nbv.planning.hull import convex_hull, sample_on_hull
+from nbv.planning.hull_sampling import convex_hull, sample_on_hull
 from nbv.planning.set_cover import DEFAULT_N_ITER, as_exclude, greedy_packed, pack_sets
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets

@@ -3,7 +3,7 @@
 :mod:`nbv.planning.information_gain` sums one metric over a candidate's rays. Here one pass
 along each ray (stopping at its first occupied voxel) records several, and the candidate's
 sums are put on a common scale across the candidates of a decision, beside where the candidate
-lies relative to the captured views. :mod:`nbv.planning.scorer` weighs them.
+lies relative to the captured views. :mod:`nbv.planning.gain_scorer` weighs them.
 
 Per ray (the columns of :func:`ray_features`):
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from nbv.policies.episode import EpisodeState
-from nbv.policies.hull import HullSCOPolicy
+from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 
 

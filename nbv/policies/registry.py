@@ -17,12 +17,12 @@ import numpy as np
 
 from nbv.assets.weights import SHIPPED_SCORER, shipped_weights
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.scorer import GainScorer, load_scorer
+from nbv.planning.gain_scorer import GainScorer, load_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
-from nbv.policies.conditioned import ConditionedPolicy
+from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import Policy
-from nbv.policies.hull import HullSCOPolicy, HullSCOReplanPolicy
+from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy

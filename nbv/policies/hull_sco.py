@@ -9,7 +9,7 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.planning.hull import cameras_inside, convex_hull
+from nbv.planning.hull_sampling import cameras_inside, convex_hull
 from nbv.planning.planner import Plan, plan, sph_hull_points
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState

@@ -1,4 +1,5 @@
-"""The viewspace-conditioned network (:mod:`nbv.models.conditioned`) as a view-selection policy.
+"""The viewspace-conditioned network (:mod:`nbv.models.view_conditioned`) as a view-selection
+policy.
 
 A network that reads map features (``vcnbv_map``) keeps the occupancy map of ``ig`` beside it
 (an :class:`~nbv.policies.volumetric.InformationGainPolicy`, the ``mapper``) and gives it the
@@ -35,7 +36,7 @@ class ConditionedPolicy:
     to be scored). ``mapper``: the occupancy map of a network that reads map features (module
     docstring); ignored by one that does not."""
 
-    # nbv.models.conditioned.ViewConditionedNet, untyped so that importing needs no torch
+    # nbv.models.view_conditioned.ViewConditionedNet, untyped so that importing needs no torch
     model: object
     n_points: int = 256
     timings: dict[str, list[float]] = field(default_factory=dict)
@@ -53,7 +54,7 @@ class ConditionedPolicy:
         Raises:
             nbv.models.checkpoints.CheckpointError: missing or unusable (naming the file).
         """
-        from nbv.models.conditioned import load_conditioned
+        from nbv.models.view_conditioned import load_conditioned
 
         net, extra = load_conditioned(path)
         return cls(
