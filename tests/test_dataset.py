@@ -25,6 +25,7 @@ from nbv.dataset.samples import SampleSettings
 from nbv.dataset.schema import config_json
 from nbv.dataset.views import view_data
 from nbv.geometry.camera import backproject, look_at, viewspace_poses
+from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import original_viewspace
 from nbv.render.job import RenderError
 from nbv.render.noise import DepthNoise
@@ -32,11 +33,15 @@ from nbv.render.raycast import render_raycast
 from nbv.utils.fields import ConfigError
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The eps of datasets made before issue 29 (PC-NBV's is sqrt(5e-5) = DEFAULT_EPS).
+LEGACY_EPS = 0.00707
 
 
 def brute_covered(points: np.ndarray, gt: np.ndarray, eps: float) -> np.ndarray:
-    d2 = ((gt[:, None, :] - points[None, :, :]) ** 2).sum(-1)
-    return d2.min(axis=1) < eps**2
+    """PC-NBV's test on every pair: float64 squared distance (x, y, z summed in order) < eps**2."""
+    d = np.asarray(gt, np.float64)[:, None, :] - np.asarray(points, np.float64)[None, :, :]
+    d2 = (d[..., 0] ** 2 + d[..., 1] ** 2) + d[..., 2] ** 2
+    return d2.min(axis=1) < eps * eps
 
 
 def test_view_data_scores_full_resolution_then_subsamples():
@@ -82,7 +87,7 @@ def test_generate_writes_the_design_layout(tmp_path):
     with h5py.File(shard, "r") as f:
         for name in ("schema_version", "eps", "n_gt", "width", "height", "fx", "fy", "cx", "cy"):
             assert name in f.attrs
-        assert f.attrs["width"] == 64 and f.attrs["eps"] == pytest.approx(0.00707)
+        assert f.attrs["width"] == 64 and f.attrs["eps"] == DEFAULT_EPS
         np.testing.assert_array_equal(f["viewspaces/original"][()], original_viewspace())
         assert f["viewspaces/permuted"].shape == (33, 3)
         assert f["failures"].shape == (1, 2)
@@ -116,10 +121,15 @@ def test_coverage_bits_match_merged_cloud(tmp_path):
     bits = np.unpackbits(view.coverage, axis=1)[:, : len(model.gt_points)].astype(bool)
     state = [0, 9, 20]
     merged = np.concatenate([view.view_points(v) for v in state]).astype(np.float64)
-    from scipy.spatial import cKDTree
-
-    dist, _ = cKDTree(merged).query(model.gt_points.astype(np.float64))
-    np.testing.assert_array_equal(bits[state].any(axis=0), dist < 0.00707)
+    expected = brute_covered(merged, model.gt_points, DEFAULT_EPS)
+    assert 0 < expected.sum() < len(expected)
+    np.testing.assert_array_equal(bits[state].any(axis=0), expected)
+    # Every view's row is the packed brute force of that view alone.
+    for v in range(len(bits)):
+        np.testing.assert_array_equal(
+            view.coverage[v],
+            np.packbits(brute_covered(view.view_points(v), model.gt_points, DEFAULT_EPS)),
+        )
 
 
 def test_shards_together_equal_one_run(tmp_path):
@@ -141,8 +151,27 @@ def test_rerun_skips_done_models_and_refuses_other_settings(tmp_path):
     generate(small_settings(tmp_path))
     again = generate(small_settings(tmp_path))
     assert again.skipped == 3 and again.produced == 0 and len(again.failures) == 1
-    with pytest.raises(ConfigError, match="other settings"):
+    with pytest.raises(
+        ConfigError, match=r"other settings \{'eps': \(0\.007071067811865475, 0\.01\)"
+    ):
         generate(small_settings(tmp_path, eps=0.01))
+
+
+def test_a_dataset_of_another_eps_is_refused_by_name(tmp_path):
+    generate(small_settings(tmp_path, eps=LEGACY_EPS))  # as made before issue 29
+    assert nbv.dataset.open(tmp_path / "out").attrs["eps"] == LEGACY_EPS
+    assert len(nbv.dataset.open(tmp_path / "out", eps=LEGACY_EPS)) == 3
+    with pytest.raises(nbv.dataset.DatasetError) as err:
+        nbv.dataset.open(tmp_path / "out", eps=DEFAULT_EPS)
+    message = str(err.value)
+    assert "\n" not in message and "eps=0.00707 but protocol.eps=0.007071067811865475" in message
+    assert "set protocol.eps=0.00707" in message
+    ds = nbv.dataset.open(tmp_path / "out")
+    with pytest.raises(nbv.dataset.DatasetError, match=r"prepare\.eps=0\.007071067811865475"):
+        nbv.dataset.check_eps(ds, DEFAULT_EPS, "prepare.eps")
+    # Resuming that folder with the new default refuses too, naming eps.
+    with pytest.raises(ConfigError, match=r"'eps': \(0\.00707, 0\.007071067811865475\)"):
+        generate(small_settings(tmp_path))
 
 
 def test_nothing_produced_is_an_error_status(tmp_path):
@@ -170,19 +199,22 @@ def test_bad_settings_name_the_key(tmp_path, bad, message):
         small_settings(tmp_path, **bad)
 
 
-#: The data identity of ``python -m nbv.dataset seed=5``, as every shard made so far stores it (a
-#: change here would refuse to resume those datasets).
+#: The data identity of ``python -m nbv.dataset seed=5``, as every shard made since issue 29 (eps =
+#: sqrt(5e-5)) stores it (a change here would refuse to resume those datasets; shards made before
+#: stored "eps":0.00707 and are refused on purpose).
 IDENTITY = (
     '{"backend":"blender","camera":{"cx":319.5,"cy":239.5,"fx":476.0,"fy":476.0,"height":480,'
     '"width":640},"categories":null,"counts":{"test":1,"train":4,"unseen":2,"valid":1},'
-    '"eps":0.00707,"keep_depth":false,"n_gt":16384,"num_shards":1,"points_per_view":2048,'
+    '"eps":0.007071067811865475,"keep_depth":false,"n_gt":16384,"num_shards":1,'
+    '"points_per_view":2048,'
     '"root":null,"schema_version":1,"seed":5,"source":"synthetic","split_fractions":'
     '{"test":0.0833,"valid":0.0833},"viewspaces":{"original":"original","permuted":"permuted"}}'
 )
 RESEARCH_NOISY = (
     '{"backend":"raycast","camera":{"cx":319.5,"cy":239.5,"fx":476.0,"fy":476.0,"height":480,'
     '"width":640},"categories":null,"counts":{"test":0,"train":16,"unseen":0,"valid":1},'
-    '"eps":0.00707,"keep_depth":false,"n_gt":16384,"noise":{"a":0.0012,"b":0.0019,"c":0.0001,'
+    '"eps":0.007071067811865475,"keep_depth":false,"n_gt":16384,'
+    '"noise":{"a":0.0012,"b":0.0019,"c":0.0001,'
     '"dropout_start":70.0,"max_angle":85.0,"z0":0.4},"num_shards":1,"points_per_view":2048,'
     '"root":null,"schema_version":1,"seed":0,"source":"synthetic","split_fractions":'
     '{"test":0.0833,"valid":0.0833},"viewspaces":{"original":"original","permuted":"permuted"}}'
@@ -270,3 +302,22 @@ def test_kill_nine_then_resume_gives_the_same_arrays(tmp_path):
     for name in a:
         np.testing.assert_array_equal(a[name], b[name], err_msg=name)
     assert not any(p.name.startswith(".parts") for p in killed.iterdir())
+
+
+def test_the_eval_prepare_cache_keys_on_eps(tmp_path):
+    """A mesh folder prepared under one eps is never reused under another."""
+    from nbv.eval.config import PrepareSettings
+    from nbv.eval.prepare import identity, prepared_dir
+    from nbv.geometry.scores import COVERAGE_TEST
+
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    trimesh.creation.box((0.5, 0.5, 0.5)).export(folder / "box.ply")
+    new, old = (
+        PrepareSettings(dir=tmp_path / "prep"),
+        PrepareSettings(dir=tmp_path / "prep", eps=LEGACY_EPS),
+    )
+    assert identity(folder, new)["eps"] == DEFAULT_EPS
+    assert identity(folder, new)["coverage_test"] == COVERAGE_TEST
+    assert prepared_dir(folder, new) != prepared_dir(folder, old)
+    assert prepared_dir(folder, new) == prepared_dir(folder, PrepareSettings(dir=tmp_path / "prep"))

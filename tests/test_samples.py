@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import shutil
+
+import h5py
 import numpy as np
 import pytest
 from datagen import small_settings
@@ -119,6 +122,32 @@ def test_samples_file_round_trip_and_staleness(dataset_dir):
     assert len(part) == 6 and set(part.key) == {cov.key[0]}
     with pytest.raises(ValueError, match="score"):
         load_samples(dataset_dir, "loudness")
+
+
+def test_samples_of_a_shard_with_another_eps_are_stale_and_refused(dataset_dir, tmp_path):
+    folder = tmp_path / "copy"
+    folder.mkdir()
+    shard = folder / "shard-00000-of-00001.h5"
+    shutil.copy(dataset_dir / shard.name, shard)
+    settings = SampleSettings(trajectories=1, steps=2, n_points=16, lmax=1, seed=0)
+    write_samples(shard, settings, progress=False)
+    with h5py.File(samples_path(shard), "r") as handle, h5py.File(shard, "r") as f:
+        assert handle.attrs["dataset_eps"] == f.attrs["eps"]
+    assert samples_up_to_date(shard, settings)
+    assert len(load_samples(folder, "coverage")) > 0
+    # The shard remade with another eps (its targets would then come from other bits).
+    with h5py.File(shard, "r+") as f:
+        made = float(f.attrs["eps"])
+        f.attrs["eps"] = made * 1.5
+    assert not samples_up_to_date(shard, settings)
+    with pytest.raises(nbv.dataset.DatasetError, match=rf"eps={made!r}, but .* has eps="):
+        load_samples(folder, "coverage")
+    # A samples file from before dataset_eps was recorded is remade, never trusted.
+    with h5py.File(shard, "r+") as f:
+        f.attrs["eps"] = made
+    with h5py.File(samples_path(shard), "r+") as handle:
+        del handle.attrs["dataset_eps"]
+    assert not samples_up_to_date(shard, settings)
 
 
 def test_flat_models_are_skipped_for_vig(tmp_path):

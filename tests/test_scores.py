@@ -1,7 +1,10 @@
 import itertools
+import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from nbv.geometry.hull import hull_vertices, hull_volume
 from nbv.geometry.scores import (
@@ -11,6 +14,7 @@ from nbv.geometry.scores import (
     coverage_from_bits,
     coverage_gains,
     covered_mask,
+    squared_distances,
     view_hull_vertices,
     vig,
     vig_gains,
@@ -19,14 +23,22 @@ from nbv.geometry.scores import (
 from nbv.geometry.union import UnionHulls
 
 CUBE = np.array(list(itertools.product([0.0, 1.0], repeat=3)))
+ROOT = Path(__file__).resolve().parents[1]
+#: The eps of datasets made before issue 29: 2-28 ground-truth points a model differ from PC-NBV's.
+LEGACY_EPS = 0.00707
+
+
+def _brute_sq(partial: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """Reference: ``(N, M)`` float64 squared distances of every pair, summed x, y, z in order."""
+    d = np.asarray(partial, np.float64)[None, :, :] - np.asarray(gt, np.float64)[:, None, :]
+    return (d[..., 0] ** 2 + d[..., 1] ** 2) + d[..., 2] ** 2
 
 
 def _brute_covered(partial: np.ndarray, gt: np.ndarray, eps: float) -> np.ndarray:
-    """Reference: every pairwise distance."""
+    """Reference: PC-NBV's test on every pair, squared distance < eps**2 in float64."""
     if len(partial) == 0:
         return np.zeros(len(gt), dtype=bool)
-    d = np.linalg.norm(gt[:, None, :] - partial[None, :, :], axis=2)
-    return (d < eps).any(axis=1)
+    return (_brute_sq(partial, gt) < eps * eps).any(axis=1)
 
 
 def _random_views(rng: np.random.Generator, n_views: int, n_gt: int, eps: float):
@@ -55,15 +67,82 @@ def assert_gains_are_differences(gains, state, score_of, base, abs_tol):
 
 
 def test_default_eps_is_pcnbv():
-    assert DEFAULT_EPS == 0.00707
-    assert DEFAULT_EPS**2 == pytest.approx(5e-5, rel=1e-3)
+    assert DEFAULT_EPS == math.sqrt(5e-5) == 0.007071067811865475
+    # In float64 the square is PC-NBV's threshold exactly, so ``< eps**2`` is its test bit for bit.
+    assert DEFAULT_EPS * DEFAULT_EPS == 5e-5 and DEFAULT_EPS**2 == 5e-5
+    protocol = yaml.safe_load((ROOT / "conf/protocol/default.yaml").read_text())
+    assert protocol["eps"] == DEFAULT_EPS
+
+
+#: ``P - G`` is an offset whose float64 squared norm is exactly 5e-5 (found by a seeded search;
+#: the test checks it), away from the axes.
+G = np.array([0.25, -0.125, 0.375])
+P = np.array([0.2499506523450238, -0.12884030363707322, 0.369062859881725])
+
+
+def _at_squared_distance(gt: np.ndarray, sq: float, rng: np.random.Generator) -> np.ndarray:
+    """One point per ground-truth point, in a random direction, at squared distance ``sq``."""
+    u = rng.normal(size=gt.shape)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return gt + math.sqrt(sq) * u
+
+
+def test_pcnbv_boundary_below_at_and_above_5e_5():
+    rng = np.random.default_rng(10)
+    gt = rng.uniform(-0.5, 0.5, size=(200, 3))
+    below = _at_squared_distance(gt, 5e-5 - 1e-12, rng)
+    above = _at_squared_distance(gt, 5e-5 + 1e-12, rng)
+    # The premises, in the test's own arithmetic: 1e-12 is far above float64's rounding here.
+    sq_below = np.diag(_brute_sq(below, gt))
+    sq_above = np.diag(_brute_sq(above, gt))
+    assert np.all(np.abs(sq_below - (5e-5 - 1e-12)) < 1e-17)
+    assert np.all(np.abs(sq_above - (5e-5 + 1e-12)) < 1e-17)
+    # Each point's nearest ground-truth point is its own (else the test would test nothing).
+    assert np.array_equal(_brute_sq(below, gt).argmin(axis=0), np.arange(len(gt)))
+    assert covered_mask(below, gt).all() and coverage(below, gt) == 1.0
+    assert not covered_mask(above, gt).any() and coverage(above, gt) == 0.0
+    # The old eps (0.00707 < sqrt(5e-5 - 1e-12) = 0.0070710677) misses the points just below.
+    assert not covered_mask(below, gt, LEGACY_EPS).any()
+    # Exactly 5e-5 is not covered (strict): on an axis from the origin and off the axes.
+    on_axis = np.array([[DEFAULT_EPS, 0.0, 0.0]])
+    assert _brute_sq(on_axis, np.zeros((1, 3)))[0, 0] == 5e-5
+    assert _brute_sq(P[None], G[None])[0, 0] == 5e-5
+    assert squared_distances(P[None], G[None])[0] == 5e-5
+    assert not covered_mask(on_axis, np.zeros((1, 3))).any()
+    assert not covered_mask(P[None], G[None]).any()
+    # One float64 step closer along each coordinate's offset is covered.
+    closer = np.nextafter(P, G)
+    assert _brute_sq(closer[None], G[None])[0, 0] < 5e-5
+    assert covered_mask(closer[None], G[None]).all()
+
+
+def test_agrees_with_brute_force_on_ties_within_a_few_ulps():
+    """Partial points at squared distances within a few float64 steps of eps**2, several per
+    ground-truth point: where a KD-tree's own rounding could decide, the float64 test must."""
+    rng = np.random.default_rng(11)
+    gt = rng.uniform(-0.5, 0.5, size=(300, 3))
+    parts = []
+    for _ in range(4):
+        scale = 1.0 + rng.integers(-6, 7, size=(len(gt), 1)) * 2.0**-52
+        u = rng.normal(size=gt.shape)
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        parts.append(gt + DEFAULT_EPS * scale * u)
+    partial = np.concatenate(parts)
+    ref = _brute_covered(partial, gt, DEFAULT_EPS)
+    sq_min = _brute_sq(partial, gt).min(axis=1)
+    assert np.all(np.abs(sq_min / 5e-5 - 1.0) < 1e-13)  # every decision is a near-tie
+    assert 0 < ref.sum() < len(gt)
+    np.testing.assert_array_equal(covered_mask(partial, gt), ref)
+    bits = coverage_bits(parts, gt)
+    for v, pts in enumerate(parts):
+        np.testing.assert_array_equal(bits[v], np.packbits(_brute_covered(pts, gt, DEFAULT_EPS)))
 
 
 def test_coverage_matches_brute_force():
     rng = np.random.default_rng(0)
     gt = rng.uniform(-0.5, 0.5, size=(400, 3))
     partial = gt[:150] + rng.normal(scale=0.01, size=(150, 3))
-    for eps in (0.005, DEFAULT_EPS, 0.02, 0.2):
+    for eps in (0.005, LEGACY_EPS, DEFAULT_EPS, 0.02, 0.2):
         ref = _brute_covered(partial, gt, eps)
         np.testing.assert_array_equal(covered_mask(partial, gt, eps), ref)
         assert coverage(partial, gt, eps) == ref.mean()

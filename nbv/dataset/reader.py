@@ -134,6 +134,43 @@ def shard_files(path: str | Path) -> list[Path]:
     raise DatasetError(f"{path}: no such dataset file or folder; run `make dataset` first")
 
 
-def open_dataset(path: str | Path) -> Dataset:
-    """Open a dataset: one shard file, or a folder whose shards are read as one dataset."""
-    return Dataset(shard_files(path))
+def check_eps(dataset: Dataset, eps: float, setting: str = "protocol.eps") -> None:
+    """Refuse a dataset whose coverage bits were computed with another ``eps``.
+
+    The bits fix the coverage criterion (squared distance ``< eps**2``); scoring them under a
+    different ``eps`` would silently mix two criteria. The comparison is exact: the stored
+    value is the float64 the bits were computed with.
+
+    Args:
+        dataset: the opened dataset (its root attribute ``eps``).
+        eps: the eps the caller scores with (world units).
+        setting: the name of the caller's setting, for the message.
+
+    Raises:
+        DatasetError: one line naming the files, both values and ``setting``.
+    """
+    stored = float(dataset.attrs["eps"])
+    if stored != float(eps):
+        where = dataset.files[0].parent if len(dataset.files) > 1 else dataset.files[0]
+        raise DatasetError(
+            f"{where}: its coverage bits were computed with eps={stored!r} but "
+            f"{setting}={float(eps)!r}; regenerate the dataset (make dataset) or set "
+            f"{setting}={stored!r}"
+        )
+
+
+def open_dataset(
+    path: str | Path, eps: float | None = None, eps_setting: str = "protocol.eps"
+) -> Dataset:
+    """Open a dataset: one shard file, or a folder whose shards are read as one dataset.
+
+    Args:
+        path: a shard file or a dataset folder.
+        eps: when given, the dataset must have been made with exactly this eps
+            (:func:`check_eps`); None skips the check.
+        eps_setting: the caller's name of that setting, for the message.
+    """
+    dataset = Dataset(shard_files(path))
+    if eps is not None:
+        check_eps(dataset, eps, eps_setting)
+    return dataset

@@ -21,7 +21,8 @@ are skipped for ``vig`` and listed in ``/skipped``.
 File ``samples-shard-SSSSS-of-NNNNN.h5`` beside each dataset shard::
 
     / (attrs)                 schema_version, viewspace, n_views, n_points, lmax, trajectories,
-                              steps, random_step_prob, seed, dataset (the shard file's name)
+                              steps, random_step_prob, seed, dataset (the shard file's name),
+                              dataset_eps (the shard's eps: the targets' coverage criterion)
     /models/key, category, split      (M,) strings
     /skipped                  (K, 3) strings: key, score, reason
     /<score>/points           (S, n_points, 3) float32
@@ -237,6 +238,9 @@ def write_samples(
             handle.attrs.update(
                 schema_version=SCHEMA_VERSION,
                 dataset=shard_file.name,
+                # The targets come from the shard's coverage bits: a shard remade with another
+                # eps makes these samples stale (samples_up_to_date, load_samples).
+                dataset_eps=float(dataset.attrs["eps"]),
                 n_views=len(dataset.viewspaces[settings.viewspace]),
             )
             write_strings(handle, "models/key", keys)
@@ -261,11 +265,13 @@ def samples_up_to_date(shard_file: Path, settings: SampleSettings) -> bool:
     with h5py.File(out, "r") as handle, h5py.File(shard_file, "r") as shard:
         same_models = list(handle["models/key"].asstr()[()]) == list(shard.get("models", {}))
         stored = {k: handle.attrs.get(k) for k in asdict(settings)}
+        # A file from before dataset_eps was recorded is remade: its eps is unknown.
+        same_eps = handle.attrs.get("dataset_eps") == shard.attrs["eps"]
     wanted = asdict(settings)
     same_settings = all(
         np.array_equal(np.asarray(stored[k]), np.asarray(v)) for k, v in wanted.items()
     )
-    return same_models and same_settings
+    return same_models and same_settings and bool(same_eps)
 
 
 @dataclass
@@ -299,15 +305,30 @@ class SampleSet:
         return SampleSet(**arrays, attrs=self.attrs)
 
 
+def _check_samples_eps(shard_file: Path, file: Path) -> None:
+    """Refuse samples whose targets were computed from a shard made with another eps."""
+    with h5py.File(file, "r") as handle, h5py.File(shard_file, "r") as shard:
+        made, now = handle.attrs.get("dataset_eps"), float(shard.attrs["eps"])
+    # Files from before dataset_eps was recorded carry no eps to compare.
+    if made is not None and float(made) != now:
+        raise DatasetError(
+            f"{file}: samples made from a shard with eps={float(made)!r}, but {shard_file} has "
+            f"eps={now!r}; remake them (make dataset, samples stage)"
+        )
+
+
 def load_samples(path: str | Path, score: str) -> SampleSet:
     """Read one score's samples from a dataset folder (or one samples file)."""
     if score not in SCORES:
         raise ValueError(f"score={score!r}: must be one of {', '.join(SCORES)}")
     path = Path(path)
-    files = [path] if path.is_file() else [samples_path(f) for f in shard_files(path)]
+    shards = [] if path.is_file() else shard_files(path)
+    files = [path] if path.is_file() else [samples_path(f) for f in shards]
     missing = [str(f) for f in files if not f.exists()]
     if missing:
         raise DatasetError(f"no samples file {missing[0]}; run `make dataset` (samples stage)")
+    for shard, file in zip(shards, files, strict=True):
+        _check_samples_eps(shard, file)
     parts: dict[str, list] = {}
     attrs: dict = {}
     for file in files:

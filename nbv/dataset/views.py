@@ -12,7 +12,7 @@ import numpy as np
 from nbv.dataset.records import ViewData, offsets_of
 from nbv.geometry.camera import Intrinsics, backproject
 from nbv.geometry.hull import hull_vertices
-from nbv.geometry.scores import covered_mask
+from nbv.geometry.scores import coverage_bits
 from nbv.render.job import RenderError
 
 __all__ = ["view_data"]
@@ -50,7 +50,8 @@ def view_data(
     kept, bits, hulls = [], [], []
     for v in range(len(depth)):
         points = backproject(depth[v], intrinsics, poses[v])
-        bits.append(np.packbits(covered_mask(points, gt_points, eps)))
+        # The one coverage test of the project (the evaluator and the planner use it too).
+        bits.append(coverage_bits([points], gt_points, eps)[0])
         hulls.append(hull_vertices(points).astype(np.float32))
         if 0 < points_per_view < len(points):
             points = points[np.sort(rng.choice(len(points), points_per_view, replace=False))]

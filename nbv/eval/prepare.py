@@ -3,8 +3,8 @@
 The folder is rendered from both viewspaces and scored exactly like a generated dataset
 (:func:`nbv.dataset.generate.generate` with ``source="folder"``). The result lives in
 ``<cache_dir>/<hash>/``, where the hash covers the mesh files (relative path, size, modification
-time) and every setting that shapes the data; a later evaluation with the same folder and
-settings reuses it instead of rendering again.
+time) and every setting that shapes the data, ``eps`` and the coverage test included; a later
+evaluation with the same folder and settings reuses it instead of rendering again.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from nbv.assets.meshes import MESH_SUFFIXES
 from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer
 from nbv.eval.config import PrepareSettings
+from nbv.geometry.scores import COVERAGE_TEST
 
 #: Written in a prepared folder once the dataset is complete.
 DONE_FILE = "prepared.json"
@@ -45,7 +46,9 @@ def identity(mesh_dir: Path, settings: PrepareSettings) -> dict:
         "backend": settings.backend,
         "camera": [settings.camera.width, settings.camera.height, settings.camera.fx],
         "n_gt": settings.n_gt,
+        # eps and the test itself: a cache made under another criterion is never reused.
         "eps": settings.eps,
+        "coverage_test": COVERAGE_TEST,
         "points_per_view": settings.points_per_view,
         "seed": settings.seed,
     }

@@ -1,9 +1,11 @@
 """Scores of a partial cloud against the ground truth: coverage and volumetric information gain.
 
 * **Coverage** is the fraction of ground-truth points that have a partial-cloud point closer than
-  ``eps``: a ground-truth point ``g`` is covered when ``min_p |p - g| < eps`` (strict, as PC-NBV's
-  code tests the squared distance ``< 5e-5``). ``eps`` defaults to :data:`DEFAULT_EPS` and is a
-  setting everywhere.
+  ``eps``: a ground-truth point ``g`` is covered when some partial point ``p`` has
+  ``sum((p - g)**2) < eps**2``, both sides in float64 (strict). With :data:`DEFAULT_EPS`
+  ``= sqrt(5e-5)``, ``eps**2 == 5e-5`` exactly, so this is PC-NBV's test (squared distance
+  ``< 5e-5``) bit for bit. ``eps`` is a setting everywhere; every coverage computation (dataset,
+  evaluator's prepared meshes, planner, export) goes through :func:`covered_mask`.
 * Coverage of a *view state* (a set of visited views) is computed from packed per-view coverage bits
   (the dataset key ``views/<viewspace>/coverage``): a ground-truth point is covered by the merged
   cloud exactly when one of the visited views covers it, so OR-ing the visited rows and counting
@@ -18,6 +20,7 @@ Units are those of the clouds (the normalised object frame: the object fits in a
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -27,8 +30,15 @@ from nbv.geometry.clouds import as_cloud
 from nbv.geometry.hull import hull_vertices, hull_volume
 from nbv.utils.bits import popcount, popcount_rows
 
-#: Coverage threshold: PC-NBV tests squared distance < 5e-5, i.e. Euclidean 0.00707.
-DEFAULT_EPS = 0.00707
+#: Coverage threshold: PC-NBV tests squared distance < 5e-5, so eps = sqrt(5e-5) =
+#: 0.007071067811865475 (in float64 ``DEFAULT_EPS**2 == 5e-5`` exactly). Datasets made before
+#: issue 29 used 0.00707, which leaves 2-28 ground-truth points a model between the two.
+DEFAULT_EPS = math.sqrt(5e-5)
+#: The coverage criterion in words, recorded where a cache must not outlive a change of it.
+COVERAGE_TEST = "float64 (dx*dx + dy*dy) + dz*dz < eps*eps"
+#: The KD-tree is asked for neighbours up to ``eps * (1 + _QUERY_MARGIN)``: its own rounding
+#: (about 1e-16 relative) can then never drop a point the float64 test would cover.
+_QUERY_MARGIN = 1e-6
 #: Ground-truth points sampled uniformly on each normalised mesh (PC-NBV's 16384).
 DEFAULT_N_GT = 16384
 #: Points a dataset keeps of each view (a seeded random subset; 0 keeps all). The coverage bits
@@ -47,13 +57,33 @@ def _as_view_state(view_state: np.ndarray, n_views: int) -> np.ndarray:
     return state
 
 
+def squared_distances(partial: np.ndarray, gt: np.ndarray) -> np.ndarray:
+    """Squared distances of paired points, the coverage test's arithmetic.
+
+    Args:
+        partial: ``(K, 3)`` float64 points.
+        gt: ``(K, 3)`` float64 points, paired row by row with ``partial``.
+
+    Returns:
+        ``(K,)`` float64 ``(dx*dx + dy*dy) + dz*dz`` with ``d = partial - gt``, in that order:
+        the one formula every coverage decision uses, so a decision never depends on a library's
+        internal summation.
+    """
+    d = partial - gt
+    return (d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) + d[:, 2] * d[:, 2]
+
+
 def covered_mask(partial: np.ndarray, gt: np.ndarray, eps: float = DEFAULT_EPS) -> np.ndarray:
-    """Which ground-truth points have a partial-cloud point closer than ``eps``.
+    """Which ground-truth points have a partial-cloud point with squared distance ``< eps**2``.
+
+    The decision for ``g`` is exactly ``any(squared_distances(p, g) < eps * eps)`` over the
+    partial points ``p``, in float64 (:func:`squared_distances`); a KD-tree only finds the
+    candidates.
 
     Args:
         partial: ``(M, 3)`` partial cloud (``M`` may be 0).
         gt: ``(N, 3)`` ground-truth cloud.
-        eps: distance threshold (> 0), same unit as the clouds; the test is strict, ``d < eps``.
+        eps: distance threshold (> 0), same unit as the clouds; the test is strict.
 
     Returns:
         ``(N,)`` bool mask.
@@ -64,16 +94,32 @@ def covered_mask(partial: np.ndarray, gt: np.ndarray, eps: float = DEFAULT_EPS) 
         raise ValueError(f"eps must be positive, got {eps}")
     if len(partial) == 0 or len(gt) == 0:
         return np.zeros(len(gt), dtype=bool)
-    # cKDTree compares squared distances with eps**2 and returns inf beyond the bound.
-    dist, _ = cKDTree(partial).query(gt, k=1, distance_upper_bound=eps)
-    return np.isfinite(dist)
+    eps_sq = float(eps) * float(eps)
+    bound = float(eps) * (1.0 + _QUERY_MARGIN)
+    tree = cKDTree(partial)
+    # The tree's nearest neighbour within the widened bound (index len(partial) when none).
+    _, nearest = tree.query(gt, k=1, distance_upper_bound=bound)
+    found = nearest < len(partial)
+    mask = np.zeros(len(gt), dtype=bool)
+    sq = squared_distances(partial[nearest[found]], gt[found])
+    mask[found] = sq < eps_sq
+    # The tree's nearest may differ in the last bits from the float64 formula's nearest. Only
+    # when its squared distance lies in [eps**2, bound**2) could another point still pass: test
+    # every candidate of those (rare) ground-truth points.
+    unsure = np.flatnonzero(found)[sq >= eps_sq]
+    if unsure.size:
+        for j, near in zip(unsure, tree.query_ball_point(gt[unsure], bound), strict=True):
+            pts = partial[np.asarray(near, dtype=np.intp)]
+            sq_near = squared_distances(pts, np.broadcast_to(gt[j], pts.shape))
+            mask[j] = bool((sq_near < eps_sq).any())
+    return mask
 
 
 def coverage(partial: np.ndarray, gt: np.ndarray, eps: float = DEFAULT_EPS) -> float:
     """Fraction in [0, 1] of the ``(N, 3)`` ground truth covered by the ``(M, 3)`` partial cloud.
 
-    A ground-truth point is covered when a partial point lies at distance ``< eps``. An empty
-    partial cloud gives 0.0.
+    A ground-truth point is covered when a partial point lies at squared distance ``< eps**2``
+    (:func:`covered_mask`). An empty partial cloud gives 0.0.
     """
     mask = covered_mask(partial, gt, eps)
     if mask.size == 0:
