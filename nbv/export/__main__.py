@@ -2,7 +2,8 @@
 
 Writes PC-NBV's file layout (:mod:`nbv.export.pcnbv_format`) into ``out_dir``. Settings:
 ``conf/export.yaml`` (declared by :class:`nbv.export.config.ExportSettings`). The settings and
-the source's files are checked before anything is written; a refused export ends with one line
+the source's files are checked before anything is written (the dataset gives its full
+views; every model has an episode from every start view); a refused export ends with one line
 on stderr and exit status 2, and leaves no folder behind (:mod:`nbv.config.cli`).
 """
 
@@ -18,7 +19,7 @@ log = logging.getLogger("nbv.export")
 
 def start(cfg) -> tuple:
     """The settings and the source, checked: nothing is written yet."""
-    from nbv.export.pcnbv_format import check_destination
+    from nbv.export.pcnbv_format import check_complete, check_destination
     from nbv.export.sources import from_dataset, from_eval_run
 
     s = ENTRY.build(cfg)
@@ -29,6 +30,7 @@ def start(cfg) -> tuple:
     else:
         sources, selections = from_dataset(s.data_dir, s.viewspaces, s.limit), []
         origin = {"data_dir": str(s.data_dir)}
+    check_complete(sources, selections)
     return s, sources, selections, origin
 
 

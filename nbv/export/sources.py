@@ -1,7 +1,8 @@
 """What an export reads: a finished evaluation run or a dataset, checked before any writing.
 
 Both give the :class:`~nbv.export.pcnbv_format.Source` datasets (models and viewspaces) and,
-for a run, the :class:`~nbv.export.pcnbv_format.Selection` of each undisturbed episode. Every
+for a run, the :class:`~nbv.export.pcnbv_format.Selection` of each undisturbed episode. Each
+dataset must give its full-resolution views (:class:`~nbv.export.views.FullViews`). Every
 refusal is one :class:`ExportError` naming the file and what is wrong with it.
 """
 
@@ -11,7 +12,9 @@ import json
 from pathlib import Path
 
 import nbv.dataset
-from nbv.export.pcnbv_format import DATASET_ONLY, ExportError, Selection, Source
+from nbv.export.errors import ExportError
+from nbv.export.pcnbv_format import DATASET_ONLY, Selection, Source
+from nbv.export.views import FullViews
 
 __all__ = ["ExportError", "from_dataset", "from_eval_run"]
 
@@ -43,7 +46,7 @@ def from_dataset(
     if not keys:
         raise ExportError(f"data_dir={str(path)!r}: the dataset holds no models")
     chosen = _chosen("viewspace", viewspaces, list(ds.viewspaces), str(path))
-    return [Source(DATASET_ONLY, ds, keys, chosen)]
+    return [Source(DATASET_ONLY, ds, keys, chosen, FullViews(ds))]
 
 
 def _results(run: Path) -> dict:
@@ -109,7 +112,7 @@ def from_eval_run(
         if not keys:
             continue
         used = [vs for vs in viewspaces_ if any(e["viewspace"] == vs for e in mine)]
-        sources.append(Source(name, ds, keys, used))
+        sources.append(Source(name, ds, keys, used, FullViews(ds)))
         selections += [_selection(name, e) for e in mine if e["key"] in keys]
     if not selections:
         raise ExportError(f"{where}: no undisturbed episodes of {methods_} on {viewspaces_}")
