@@ -114,7 +114,7 @@ def _coverage_bits(depth: np.ndarray, poses: np.ndarray, gt: np.ndarray) -> np.n
 def test_binary_depth_and_coverage_match_the_wheel(binary, mesh_set):
     """The binary and the bpy wheel on the same meshes, at the dataset's 640 x 480: depth within
     1e-4 on >= 99.9% of the pixels both hit, hit masks differing on <= 0.01% of the pixels, and
-    equal coverage bits (16384 ground-truth points, eps 0.00707). Bits can differ where a
+    equal coverage bits (16384 ground-truth points, eps sqrt(5e-5)). Bits can differ where a
     ground-truth point lies within ~1e-5 of eps from the nearest view point: 5 of 131,072 bits
     did on one of 22 models in the README's measurement, none do on these."""
     meshes = _shared_meshes() if mesh_set == "shared" else _synthetic_models()

@@ -17,6 +17,7 @@ from nbv.assets.weights import shipped_weights
 from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics, opencv_to_blender, project
+from nbv.geometry.scores import DEFAULT_EPS
 from nbv.plan.captures import CaptureError, check_rigid, read_captures
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.method import policy_rng
@@ -28,7 +29,7 @@ from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
 
 CAMERA = Intrinsics.centred(64, 48, 48.0)
-EPS = 0.00707
+EPS = DEFAULT_EPS
 START = 3
 #: A similarity of the world: captures scaled by SCALE and moved by SHIFT.
 SCALE, SHIFT = 3.0, np.array([1.5, -2.0, 0.7])
