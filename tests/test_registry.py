@@ -68,6 +68,17 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
     assert METHODS["ig_learned"].build(given, np.random.default_rng(0)).scorer is own
     ig = METHODS["ig"].build(ctx, np.random.default_rng(0))
     assert ig.settings == ctx.volumetric and ig.intrinsics == SMALL_CAMERA
+    # The field's volumetric baselines: ig with the run's settings but their own metric, on
+    # the run's shared candidate voxels.
+    for name, metric in (("ig_area_factor", "area_factor"), ("ig_proximity", "proximity_count")):
+        policy = METHODS[name].build(ctx, np.random.default_rng(0))
+        assert kinds[name] is InformationGainPolicy and policy.traced is ctx.traced
+        assert policy.settings == dataclasses.replace(ctx.volumetric, metric=metric)
+        assert policy.intrinsics == SMALL_CAMERA
+    # Spread breaks its ties with the episode's generator (the same draws for the same seed).
+    spread = METHODS["spread"].build(ctx, np.random.default_rng(4))
+    assert spread.rng.random() == np.random.default_rng(4).random()
+    assert spread.counts == {"decisions": 0, "ties": 0}
     for name in [p for p in PLANNERS if p.startswith("hull_sco")]:
         policy = METHODS[name].build(ctx, np.random.default_rng(0))
         assert policy.settings.n_samp == 123 and policy.n_views == 7 and policy.eps == 0.02
@@ -80,14 +91,18 @@ def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
         "random", "spread", "oracle", "pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map",
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig",
-        "hull_ig", "ig_learned",
+        "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
     ]  # fmt: skip
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "vcnbv": "directions",
                               "vcnbv_map": "directions"}  # fmt: skip
     assert PLANNERS == (
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig", "hull_ig",
-        "ig_learned",
+        "ig_learned", "ig_area_factor", "ig_proximity",
     )  # fmt: skip
+    # Random and spread pick at random (spread among its ties): averaged over seeds.
+    assert [m.name for m in METHODS.values() if m.stochastic] == ["random", "spread"]
+    assert check_methods("position_noise")[-3:] == ("ig_learned", "ig_area_factor",
+                                                    "ig_proximity")  # fmt: skip
     assert [m.name for m in METHODS.values() if m.ground_truth] == ["oracle"]
     assert SCORED == ("ig_learned",)
     assert check_methods("random_cloud") == ("pcnbv", "pcnbv_sph")

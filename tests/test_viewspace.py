@@ -14,6 +14,8 @@ from nbv.geometry.viewspace import (
     original_viewspace,
     permuted_viewspace,
     save_viewspace,
+    spread_picks,
+    spread_views,
 )
 from nbv.geometry.viewspace_generators import (
     UP_AXES,
@@ -224,3 +226,104 @@ def test_a_file_with_two_views_in_one_direction_is_refused(tmp_path):
     path.write_text("0 0 1\n1 0 0\n0 0 2\n")
     with pytest.raises(ViewspaceError, match="duplicate of the direction on line 1"):
         ViewspaceSpec(kind="file", file=str(path)).directions()
+
+
+# --------------------------------------------------------------------------------------------
+# Spread picks: maximin, ties counted, broken at random with a generator
+# --------------------------------------------------------------------------------------------
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def _farthest_by_brute_force(unit: np.ndarray, closed: list[int], tol: float = 1e-9) -> list[int]:
+    """The open views whose smallest angle (radians, arccos) to a closed view is within ``tol``
+    of the largest such angle; every open view when nothing is closed."""
+    open_ = [v for v in range(len(unit)) if v not in closed]
+    if not closed:
+        return open_
+    smallest = [min(np.arccos(np.clip(unit[v] @ unit[w], -1, 1)) for w in closed) for v in open_]
+    return [v for v, a in zip(open_, smallest, strict=True) if a >= max(smallest) - tol]
+
+
+def _lowest_index_spread(directions, closed, count) -> list[int]:
+    """The rule before the random tie-break, as it was written: cosines rounded to 12 decimals,
+    the lowest index of the smallest."""
+    open_views = ~np.array(closed, dtype=bool)
+    nearest = np.full(len(directions), -np.inf)
+    if (~open_views).any():
+        nearest = (directions @ directions[~open_views].T).max(axis=1)
+    picks = []
+    for _ in range(count):
+        candidates = np.flatnonzero(open_views)
+        best = int(candidates[np.argmin(np.round(nearest[candidates], 12))])
+        picks.append(best)
+        open_views[best] = False
+        np.maximum(nearest, directions @ directions[best], out=nearest)
+    return picks
+
+
+#: Three rings of 6, 12 and 6 views: many ties, of different sizes.
+RINGS = _unit(rings([60, 10, -40], [6, 12, 6]))
+
+
+@pytest.mark.parametrize("seed", [None, 0, 1])
+def test_spread_picks_are_maximin_and_count_their_ties_exactly(seed):
+    rng = None if seed is None else np.random.default_rng(seed)
+    for start in (0, 7, 20):
+        closed = np.zeros(len(RINGS), dtype=bool)
+        closed[start] = True
+        picks = spread_picks(RINGS, closed, len(RINGS) - 1, rng)
+        assert sorted(picks.views) == sorted(set(range(len(RINGS))) - {start})
+        visited = [start]
+        for view, tied in zip(picks.views, picks.tied, strict=True):
+            farthest = _farthest_by_brute_force(RINGS, visited)
+            assert view in farthest  # no open view is farther than the pick
+            assert tied == len(farthest)
+            if seed is None:
+                assert view == min(farthest)
+            visited.append(view)
+        assert picks.ties == sum(1 for t in picks.tied if t > 1)
+        assert 0 < picks.ties < len(picks.views)  # both kinds of decision happen here
+    # The input is not modified.
+    assert closed.sum() == 1
+
+
+def test_spread_breaks_ties_uniformly_over_the_tied_views_and_repeats_a_seed():
+    closed = np.zeros(len(RINGS), dtype=bool)
+    closed[[0, 3]] = True  # opposite views of the top ring: four of the bottom ring tie
+    tied = _farthest_by_brute_force(RINGS, [0, 3])
+    assert tied == [19, 20, 22, 23]
+    # Nothing closed: all 24 views tie for the first pick.
+    nothing = np.zeros(len(RINGS), dtype=bool)
+    firsts = [spread_views(RINGS, nothing, 1, np.random.default_rng(s))[0] for s in range(400)]
+    assert set(firsts) == set(range(len(RINGS)))
+    seconds = [spread_views(RINGS, closed, 1, np.random.default_rng(s))[0] for s in range(400)]
+    assert set(seconds) == set(tied)
+    # Each is binomial(400, 1/4) (mean 100, sd 8.7): outside 60-140 has p < 1e-5 in all.
+    assert all(60 < seconds.count(v) < 140 for v in tied)
+    # Whole sequences: the same seed, the same picks; another seed, other picks.
+    a = spread_views(RINGS, closed, 12, np.random.default_rng(5))
+    assert spread_views(RINGS, closed, 12, np.random.default_rng(5)) == a
+    assert any(spread_views(RINGS, closed, 12, np.random.default_rng(s)) != a for s in range(6, 9))
+
+
+@pytest.mark.parametrize("name", ["original", "permuted"])
+def test_without_a_generator_spread_is_the_lowest_index_rule_of_before(name):
+    d = _unit(get_viewspace(name))
+    ties = 0
+    for start in range(len(d)):
+        closed = np.zeros(len(d), dtype=bool)
+        closed[start] = True
+        picks = spread_picks(d, closed, len(d) - 1)
+        assert picks.views == _lowest_index_spread(d, closed, len(d) - 1), start
+        assert spread_views(d, closed, len(d) - 1) == picks.views
+        ties += picks.ties
+    # The original viewspace's rings tie in most decisions; the permuted one never ties.
+    assert ties == {"original": 834, "permuted": 0}[name]
+    # From the top pole the farthest views are the -30 degree ring: the tie goes to its first.
+    if name == "original":
+        top = np.zeros(33, dtype=bool)
+        top[0] = True
+        assert spread_picks(d, top, 1) == ([25], [8])

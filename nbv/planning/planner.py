@@ -63,7 +63,14 @@ def _plan_on_cloud(
     t0 = clock()
     hull = convex_hull(points)
     t1 = clock()
+    if isinstance(rng, int | np.integer) and not isinstance(rng, bool):
+        rng = np.random.default_rng(int(rng))  # as sample_on_hull makes it: the same draws
     samples, normals, face_ids = sample_on_hull(hull, settings.n_samp, rng)
+    # The fill's tie-break gets a child generator: spawning draws nothing from ``rng`` (it
+    # advances the spawn counter of its seed sequence only), so the hull samples, and with them
+    # the covering picks, are what they were before the fill was randomised; each plan from
+    # one generator gets a fresh child.
+    fill_rng = rng.spawn(1)[0]
     t2 = clock()
     poses = viewspace_poses(viewspace) if poses is None else as_poses(poses)
     if len(poses) != len(viewspace):
@@ -82,7 +89,7 @@ def _plan_on_cloud(
     t3 = clock()
     rows = pack_sets(sets)
     t4 = clock()
-    views, gains, n_covered = greedy_packed(rows, n_iter, excluded, viewspace)
+    views, gains, n_covered = greedy_packed(rows, n_iter, excluded, viewspace, fill_rng)
     t5 = clock()
     for key, seconds in (
         ("hull", t1 - t0),
@@ -118,10 +125,14 @@ def plan(
         viewspace: ``(V, 3)`` camera positions; every camera looks at the origin.
         n_iter: number of views to plan, ``<= V - len(exclude)``. Once the hull is covered,
             the remaining picks spread out over the viewspace (see
-            :func:`greedy_max_coverage` with ``positions=viewspace``).
+            :func:`greedy_max_coverage` with ``positions=viewspace``), views tied for a pick
+            chosen among at random by a child of ``rng`` (``Generator.spawn``).
         exclude: indices of the views already visited (the start view): never chosen, and the
             hull samples they capture count as covered before the first pick.
-        rng: numpy Generator or integer seed (only the sampling is random).
+        rng: numpy Generator or integer seed: of the hull sampling, and of the fill's
+            tie-break through a spawned child generator (which draws nothing from ``rng``: the
+            samples and the covering picks are those of the same seed before the fill's
+            tie-break was random; only the fill's picks among tied views changed).
         settings: the planner's settings: ``n_samp`` hull samples, the view ``simulation``
             (``"analytic"`` or ``"raycast"``, see :func:`nbv.planning.view_sets.view_sets`) and
             ``dilate``: with ``"analytic"``, dilate the visible sets by ``eps``

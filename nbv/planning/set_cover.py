@@ -61,6 +61,7 @@ def greedy_packed(
     n_iter: int,
     exclude: Iterable[int] = (),
     positions: np.ndarray | None = None,
+    rng: np.random.Generator | None = None,
 ) -> tuple[list[int], list[int], int]:
     """Greedy maximum coverage on bit rows, see :func:`greedy_max_coverage`.
 
@@ -69,6 +70,8 @@ def greedy_packed(
         n_iter: number of views to pick.
         exclude: indices of views already visited.
         positions: ``(V, 3)`` view positions, world units, or None (see
+            :func:`greedy_max_coverage`).
+        rng: the generator of the spread-out fill's tie-break, or None (see
             :func:`greedy_max_coverage`).
 
     Returns:
@@ -112,7 +115,7 @@ def greedy_packed(
             if directions is None:
                 rest = np.flatnonzero(~closed)[:count].tolist()
             else:
-                rest = spread_views(directions, closed, count)
+                rest = spread_views(directions, closed, count, rng)
             views += rest
             gains += [0] * len(rest)
             break
@@ -140,6 +143,7 @@ def greedy_max_coverage(
     n_iter: int = DEFAULT_N_ITER,
     exclude: Iterable[int] = (),
     positions: np.ndarray | None = None,
+    rng: np.random.Generator | None = None,
 ) -> tuple[list[int], list[int]]:
     """Greedy maximum coverage (the paper's Algorithm 3).
 
@@ -153,7 +157,9 @@ def greedy_max_coverage(
     Once no view has anything new, the remaining picks (gain 0) fill the plan up to ``n_iter``
     views: without ``positions``, the lowest indices first; with ``positions``, spread out:
     each is the remaining view whose smallest angle (seen from the origin, which the cameras
-    look at) to the excluded and already chosen views is largest (ties: the lowest index).
+    look at) to the excluded and already chosen views is largest
+    (:func:`nbv.geometry.viewspace.spread_views`; views tied for it: one at random with
+    ``rng``, else the lowest index). The fill alone uses ``rng``: the covering picks never do.
 
     Args:
         sets: ``(V, n)`` bool (or 0/1): ``sets[v, i]`` is True when view ``v`` covers element
@@ -163,10 +169,11 @@ def greedy_max_coverage(
             as covered.
         positions: ``(V, 3)`` view positions, world units (any non-zero distance from the
             origin), for the spread-out zero-gain picks; None picks them by index.
+        rng: the generator of the spread-out fill's tie-break; None: the lowest index.
 
     Returns:
         ``(views, gains)``: the ``n_iter`` chosen view indices in order, and the number of
         elements each newly covered (its marginal gain; non-increasing).
     """
-    views, gains, _ = greedy_packed(pack_sets(sets), n_iter, exclude, positions)
+    views, gains, _ = greedy_packed(pack_sets(sets), n_iter, exclude, positions, rng)
     return views, gains

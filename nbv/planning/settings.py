@@ -53,8 +53,9 @@ class VolumetricSettings:
             0.5, the cameras sit at distance 1).
         bound: the map covers the cube ``[-bound, bound]^3``, a whole number of voxels.
         columns: rays across a candidate's image (rows in proportion: 16 gives 16 x 12).
-        metric: ``unobserved``, ``entropy``, ``rear_side_voxel`` or ``rear_side_entropy``
-            (:mod:`nbv.planning.information_gain`).
+        metric: ``unobserved``, ``entropy``, ``rear_side_voxel``, ``rear_side_entropy``,
+            ``frontier``, ``area_factor`` (Vasquez-Gomez et al.'s Area Factor) or
+            ``proximity_count`` (Proximity Count) (:mod:`nbv.planning.information_gain`).
         depth: a ray's ``unobserved`` or ``frontier`` count stops at this many voxels, 0 for
             no cap: the count then weighs the unknown volume behind the surface a ray would
             meet, a cap weighs the surface.

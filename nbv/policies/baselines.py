@@ -1,5 +1,5 @@
-"""The reference methods: a seeded random view, the geometry-free spread rule, and the oracle
-(greedy by the true gain)."""
+"""The reference methods: a seeded random view, the geometry-free spread rule (its ties broken
+by a seeded generator), and the oracle (greedy by the true gain)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from nbv.dataset.records import score_functions
-from nbv.geometry.viewspace import angular_distances, spread_views
+from nbv.geometry.viewspace import angular_distances, spread_picks
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
@@ -37,14 +37,22 @@ class RandomPolicy:
 class SpreadPolicy:
     """The unvisited view farthest in angle from every visited view (seen from the origin).
 
-    It reads only the camera positions: no cloud, no ground truth. Deterministic; ties go to the
-    lowest index (:func:`nbv.geometry.viewspace.spread_views`). The baseline a geometric method
-    has to beat: on PC-NBV's viewspace it explains most of what covering an object takes.
+    It reads only the camera positions: no cloud, no ground truth. Views tied for the farthest
+    (:func:`nbv.geometry.viewspace.spread_picks`: cosines within ``TIE_TOLERANCE``) are chosen
+    among uniformly with ``rng``; without one, the lowest index wins (the deterministic
+    *lowest-index* variant, biased towards the first view of each ring on a viewspace of
+    rings). The baseline a geometric method has to beat: on PC-NBV's viewspace it explains most
+    of what covering an object takes.
+
+    Attributes:
+        rng: the generator of the tie-break; None for the lowest index.
+        counts: ``decisions`` made, and ``ties``: those where two or more views tied.
     """
 
+    rng: np.random.Generator | None = None
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-    counts: dict[str, int] = field(default_factory=dict)
+    counts: dict[str, int] = field(default_factory=lambda: {"decisions": 0, "ties": 0})
     last_gains: list[float] = field(default_factory=list)
 
     @staticmethod
@@ -58,7 +66,10 @@ class SpreadPolicy:
         return angular_distances(d, d[state.view_state]).min(axis=1)
 
     def __call__(self, state: EpisodeState) -> int:
-        return spread_views(self._directions(state), state.view_state, 1)[0]
+        picks = spread_picks(self._directions(state), state.view_state, 1, self.rng)
+        self.counts["decisions"] += 1
+        self.counts["ties"] += picks.ties
+        return picks.views[0]
 
 
 @dataclass

@@ -56,7 +56,9 @@ class HullSCOPolicy:
     :func:`thicken`'s slab around it, and a note says so.
 
     Attributes:
-        rng: generator of the probe views, probe points and the hull samples.
+        rng: generator of the probe views, probe points and the hull samples; each plan's
+            zero-gain fill breaks its ties with a child of it (:func:`nbv.planning.planner.plan`:
+            spawned, so the draws above are those of a plan with a lowest-index fill).
         settings: the planner's settings (:class:`nbv.planning.settings.PlannerSettings`):
             hull samples, view simulation, dilation, the signature's degree ``lmax`` and the
             ``probe_points`` of each probe view.

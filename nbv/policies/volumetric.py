@@ -46,6 +46,8 @@ class InformationGainPolicy:
     @property
     def gain_unit(self) -> str:
         """What ``last_gains`` counts."""
+        if self.settings.metric == "area_factor":
+            return "information gain (area factor, 0 to 2)"
         return f"information gain ({self.settings.metric} voxels)"
 
     def update(self, state: EpisodeState) -> None:
