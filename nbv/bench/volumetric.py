@@ -101,7 +101,15 @@ def numpy_ray_gains(
 ) -> np.ndarray:
     """:func:`nbv.planning.information_gain.ray_gains` on whole arrays: (R,) gains
     (``frontier_mask``: the (n^3,) bool frontier the ``frontier`` metric counts; ``depth``: the
-    cap of a ray's count, 0 for none)."""
+    cap of a ray's count, 0 for none).
+
+    Raises:
+        ValueError: a metric the reference does not implement (``area_factor`` and
+            ``proximity_count`` score a whole view, not rays alone).
+    """
+    implemented = ("unobserved", "frontier", "entropy", "rear_side_voxel", "rear_side_entropy")
+    if metric not in implemented:
+        raise ValueError(f"metric={metric!r}: the reference implements {', '.join(implemented)}")
     rays = _read_rays(log_odds, voxels)
     valid, index, value, unknown, _, before = rays
     if metric in ("unobserved", "frontier"):
