@@ -26,16 +26,34 @@ from nbv.eval.config import (
 )
 from nbv.eval.disturb import auc_changes, disturbed, permuted_state, random_ball
 from nbv.eval.evaluate import EvalDataError, evaluate, run
+from nbv.eval.metric_tables import (
+    episode_values,
+    metrics_tables,
+    paired_metric,
+    summaries,
+    tie_lines,
+)
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
 from nbv.eval.tables import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
+from nbv.geometry.reconstruction import cloud_scores
+from nbv.geometry.scores import coverage_from_bits
+from nbv.geometry.viewspace import spread_views
 from nbv.planning.gain_scorer import GainScorer, ScorerError, save_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.planning.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode
-from nbv.policies.registry import CHECKS, NETWORK_INPUTS, PLANNERS, SHIPPED_SCORER, MethodContext
+from nbv.policies.registry import (
+    CHECKS,
+    NETWORK_INPUTS,
+    PLANNERS,
+    SHIPPED_SCORER,
+    MethodContext,
+    check_methods,
+)
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
+from nbv.policies.volumetric import InformationGainPolicy
 
 ROOT = Path(__file__).resolve().parents[1]
 STARTS = (1, 24)
@@ -84,7 +102,7 @@ def test_full_run_writes_every_output(full_run):
     names = {p.name for p in full_run.iterdir()}
     assert {"results.json", "summary.csv", "report.md"} <= names
     pngs = ("coverage_by_view.png", "vig_by_view.png", "disturbance.png", "noise.png",
-            "reconstruction.png")  # fmt: skip
+            "reconstruction.png", "metrics.png")  # fmt: skip
     for png in pngs:
         assert (full_run / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png
     data = json.loads((full_run / "results.json").read_text())
@@ -104,13 +122,13 @@ def test_full_run_writes_every_output(full_run):
     assert data["settings"]["noise_sigmas"] == [0.002, 0.005, 0.01]
     episodes = data["episodes"]
     plain = [e for e in episodes if e["check"] is None]
-    # 2 models x 2 viewspaces x 14 methods (random with 10 seeds) x 2 starts, then the checks on
-    # 1 start of original: 2 networks x 2 checks + the random hull + 3 noise levels x (2
-    # networks + 2 one-shot planners + ig + ig_learned) = 23 x 2 models x 1 start.
-    assert len(METHODS_BY_NAME) == 14
-    assert len(plain) == 2 * 2 * (10 + 13) * 2
+    # 2 models x 2 viewspaces x every method (a stochastic one with 10 seeds) x 2 starts, then
+    # the checks on 1 start of original: each check's methods, position noise at 3 levels.
+    seeds = sum(10 if m.stochastic else 1 for m in METHODS_BY_NAME.values())
+    n_checks = sum((3 if c == "position_noise" else 1) * len(check_methods(c)) for c in CHECKS)
+    assert len(plain) == 2 * 2 * seeds * 2
     assert sorted(e["repeat"] for e in plain if e["method"] == "random")[-1] == 9
-    assert len(episodes) - len(plain) == 23 * 2
+    assert len(episodes) - len(plain) == n_checks * 2
     assert data["skipped"] == {}
     for e in episodes:
         assert len(e["views"]) == len(e["coverage"]) == len(e["vig"]) == 10
@@ -123,11 +141,13 @@ def test_full_run_writes_every_output(full_run):
                     "paper / ours", "The paper's claims", "![disturbance.png]",
                     "## AUC minus spread", "## AUC minus random", "## Filler picks",
                     "## Position noise", "![noise.png]", "verdict vs spread",
+                    "## Reconstruction, coverage and path metrics", "## The metrics minus spread",
+                    "## The metrics minus random", "## Seconds per decision", "![metrics.png]",
                     f"`ig_learned` from `{SHIPPED_SCORER}` (the weights the package"):  # fmt: skip
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 2 * 14 + 23  # (viewspace, method) pairs, then the checks
+    assert len(rows) == 2 * len(METHODS_BY_NAME) + n_checks  # (viewspace, method), the checks
     by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
     random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
     assert float(by[("original", "random", "")]["auc"]) == pytest.approx(
@@ -135,6 +155,97 @@ def test_full_run_writes_every_output(full_run):
     )
     assert float(by[("original", "random", "")]["coverage_2"]) == pytest.approx(
         np.mean([e["coverage"][1] for e in random_original]), abs=1e-6
+    )
+
+
+def test_every_episode_has_the_fields_metrics_checked_independently(full_run, tiny):
+    data = json.loads((full_run / "results.json").read_text())
+    ds = nbv.dataset.open(tiny["data"])
+    eps = float(ds.attrs["eps"])
+    models = {k: ds.model(k) for k in {e["key"] for e in data["episodes"]}}
+    for i, e in enumerate(data["episodes"]):
+        m, model = e["metrics"], models[e["key"]]
+        view = model.views[e["viewspace"]]
+        assert m["final_coverage"] == e["coverage"][-1]
+        every = np.ones(len(view.poses), bool)
+        full = coverage_from_bits(view.coverage, every, len(model.gt_points))
+        assert m["full_coverage"] == pytest.approx(full)
+        for name, frac in (("90", 0.9), ("95", 0.95)):
+            first = next((k + 1 for k, c in enumerate(e["coverage"]) if c >= frac * full - 1e-12),
+                         None)  # fmt: skip
+            assert m[f"views_to_{name}"] == first and m[f"censored_{name}"] == (first is None)
+        # The camera path, from the stored poses: arcs of the angle between directions.
+        cams = view.poses[e["views"], :3, 3]
+        radius = np.linalg.norm(view.poses[:, :3, 3], axis=1).mean()
+        unit = cams / np.linalg.norm(cams, axis=1, keepdims=True)
+        cosines = np.clip(np.sum(unit[:-1] * unit[1:], axis=1), -1, 1)
+        assert m["path_length"] == pytest.approx(radius * np.arccos(cosines).sum(), rel=1e-6)
+        assert m["shortest_path"] <= m["path_length"] + 1e-9
+        if i % 97 == 0:  # a sample of episodes: the scores of the concatenated cloud
+            cloud = np.concatenate([view.view_points(v) for v in e["views"]])
+            want = cloud_scores(cloud, model.gt_points, eps)
+            for key in want:
+                assert m[key] == pytest.approx(want[key], rel=1e-9), key
+    with open(full_run / "summary.csv", newline="") as handle:
+        rows = {(r["viewspace"], r["method"], r["check"]): r for r in csv.DictReader(handle)}
+    oracle = [e for e in data["episodes"]
+              if e["method"] == "oracle" and e["viewspace"] == "original"]  # fmt: skip
+    row = rows[("original", "oracle", "")]
+    chamfer = np.mean([e["metrics"]["chamfer"] for e in oracle])
+    assert float(row["chamfer"]) == pytest.approx(chamfer, rel=1e-5)
+    censored = sum(e["metrics"]["censored_95"] for e in oracle)
+    assert float(row["censored_95"]) == censored
+    # hull_sco plans once per episode: one decision, its stages divided by one.
+    assert float(rows[("original", "hull_sco", "")]["decisions"]) == 1.0
+    assert float(rows[("original", "ig", "")]["decisions"]) == 9.0
+
+
+def test_the_metric_tables_pair_against_spread_and_count_censored_episodes(tiny, tmp_path):
+    ev = evaluate(tiny_settings(tiny, tmp_path, methods=("spread", "oracle"),
+                                viewspaces=("original",), checks=()))  # fmt: skip
+    values = episode_values(ev.records, 10)
+    a, b = ("unseen", "original", "spread", None), ("unseen", "original", "oracle", None)
+    for key in ("final_coverage", "chamfer", "fscore_2eps", "path_length", "views_to_95"):
+        diff = paired_metric(values, a, b, key, seed=0)
+
+        def value(m, key=key):
+            if key == "views_to_95":  # censored: the restricted count, n_views + 1
+                return 11 if m["censored_95"] else m["views_to_95"]
+            return m[key]
+
+        # Each side's per-episode mean over its seeds (spread breaks ties at random).
+        per: dict[tuple, list] = {}
+        for r in ev.records:
+            per.setdefault((r.method, r.key, r.start), []).append(value(r.metrics))
+        episodes = {(k, s) for _, k, s in per}
+        want = np.mean(
+            [np.mean(per[("oracle", *e)]) - np.mean(per[("spread", *e)]) for e in episodes]
+        )
+        assert diff.mean == pytest.approx(want) and diff.n == 2 * len(STARTS)
+        assert diff.low <= diff.mean <= diff.high
+    lines = "\n".join(metrics_tables(ev.records, ["unseen"], ["original"], 10, seed=0))
+    assert "## The metrics minus spread" in lines and "## The metrics minus random" not in lines
+    final = paired_metric(values, a, b, "final_coverage", seed=0)
+    assert f"| oracle | {final.text(3)} |" in lines
+    # A hand-made censored episode: two of three censored, the mean over the one that reached.
+    rec = ev.records[0]
+    made = [replace(rec, start=s, metrics={**rec.metrics, "views_to_90": v,
+                                           "censored_90": v is None})
+            for s, v in ((1, None), (2, 4), (3, None))]  # fmt: skip
+    s = summaries(episode_values(made, 10))[(rec.dataset, rec.viewspace, rec.method, None)]
+    assert s["views_to_90"] == 4 and s["censored_90"] == 2
+    assert s["restricted_90"] == pytest.approx((11 + 4 + 11) / 3)
+
+
+def test_spread_ties_are_reported_when_recorded(tiny, tmp_path):
+    ev = evaluate(tiny_settings(tiny, tmp_path, methods=("spread",), viewspaces=("original",),
+                                checks=(), random_repeats=1))  # fmt: skip
+    counted = [replace(r, counts={"decisions": 9, "ties": 3}) for r in ev.records]
+    lines = tie_lines(counted, ["unseen"], ["original"], 10)
+    n = len(counted)
+    assert f"| unseen | original | {n} | {3 * n} | {9 * n} | 33.3 |" in lines
+    assert (
+        tie_lines([replace(r, counts={}) for r in ev.records], ["unseen"], ["original"], 10) == []
     )
 
 
@@ -212,7 +323,7 @@ def test_disturbances(full_run, tiny, tmp_path):
     checks = {(e["check"], e["method"]) for e in data["episodes"] if e["check"]}
     noisy = {(f"position_noise_{x}", m) for x in ("0.002", "0.005", "0.01")
              for m in ("pcnbv", "pcnbv_sph", "hull_sco", "hull_sco_sph", "ig",
-                       "ig_learned")}  # fmt: skip
+                       "ig_learned", "ig_area_factor", "ig_proximity")}  # fmt: skip
     assert checks == {("random_cloud", "pcnbv"), ("random_cloud", "pcnbv_sph"),
                       ("permuted_state", "pcnbv"), ("permuted_state", "pcnbv_sph"),
                       ("random_hull", "hull_sco")} | noisy  # fmt: skip
@@ -429,6 +540,16 @@ def test_interrupted_evaluation_resumes_from_its_log(tiny, tmp_path):
         r.decision_times for r in first[n_first:]
     ]
     assert log.read_text().count('{"done"') == 2
+    assert all(r.metrics for r in second)
+    # A log written before the metrics existed: the episodes read back get them computed.
+    old = [json.loads(line) for line in log.read_text().splitlines()]
+    for entry in old:
+        entry.pop("metrics", None)
+    log.write_text("".join(json.dumps(e) + "\n" for e in old))
+    again = evaluate(settings)
+    assert again.resumed == len(first)
+    # The metrics are functions of the views and the dataset: the same numbers to the bit.
+    assert [r.metrics for r in again.records] == [r.metrics for r in second]
     # Other settings: the old log is set aside and everything runs again.
     evaluate(replace(settings, seed=7))
     assert (tmp_path / "out" / "episodes.jsonl.stale").exists()
@@ -442,14 +563,20 @@ def test_ig_learned_runs_the_given_scorer_and_its_bytes_decide_the_log(tiny, tmp
         evaluate(tiny_settings(tiny, tmp_path / "out", ig_scorer=missing, **kw))
     assert not (tmp_path / "out").exists()
     own = tmp_path / "own.json"
-    # A scorer of one feature (the angle to the nearest captured view) plans as spread does.
+    # A scorer of one feature (the angle to the nearest captured view) plans as spread does, ties
+    # going to the lowest index (the deterministic spread: spread_views without a generator).
     weight = np.zeros((len(FEATURES), 1))
     weight[FEATURES.index("angle_nearest")] = 1.0
     save_scorer(own, GainScorer((weight,), (np.zeros(1),)))
     settings = tiny_settings(tiny, tmp_path / "out", ig_scorer=own, **kw)
     first = evaluate(settings).records
-    spread = evaluate(replace(settings, run="spread", methods=("spread",)))
-    assert [r.views for r in first] == [r.views for r in spread.records]
+    positions = nbv.dataset.open(tiny["data"])[first[0].key].views["permuted"].poses[:, :3, 3]
+    directions = positions / np.linalg.norm(positions, axis=1, keepdims=True)
+    for record in first:
+        closed = np.zeros(len(directions), dtype=bool)
+        closed[record.views[0]] = True
+        expected = [record.views[0], *spread_views(directions, closed, len(record.views) - 1)]
+        assert record.views == expected
     # The same file resumes; other weights in it are another run (the old log is set aside).
     assert evaluate(settings).resumed == len(first)
     save_scorer(own, GainScorer((-weight,), (np.zeros(1),)))
@@ -463,7 +590,7 @@ def test_hull_policies_get_the_dilation_setting():
         for method in PLANNERS:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
             hull = policy.hull if method == "hull_ig" else policy
-            if method not in ("ig", "ig_learned"):  # the volumetric planners have no hull
+            if not isinstance(hull, InformationGainPolicy):  # the volumetric ones have no hull
                 assert hull.settings.dilate is dilate and hull.eps == 0.03, method
 
 
@@ -528,3 +655,10 @@ def test_models_that_chose_a_checkpoint_are_not_scored(tiny, tmp_path):
     assert ev.datasets[0].keys == keys[1:]
     assert ev.datasets[0].excluded == [(keys[0], "chose the checkpoint of pcnbv")]
     assert {r.key for r in ev.records} == set(keys[1:])  # for every method, not only pcnbv
+
+
+def test_a_dataset_of_another_eps_is_refused_by_name(tiny, tmp_path):
+    settings = tiny_settings(tiny, tmp_path / "out", methods=("spread",), checks=(), plots=False)
+    other = replace(settings, prepare=replace(settings.prepare, eps=0.00707))
+    with pytest.raises(EvalDataError, match=r"eps=.*protocol\.eps=0\.00707"):
+        evaluate(other)

@@ -26,6 +26,7 @@ from nbv.dataset.reader import Dataset
 from nbv.eval.config import EvalSettings
 from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
+from nbv.eval.metrics import ModelMetrics, fill_metrics
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
 from nbv.planning.gain_scorer import load_scorer
@@ -120,7 +121,7 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
         else:
             path = Path(settings.data_dir)
         try:
-            ds = nbv.dataset.open(path)
+            ds = nbv.dataset.open(path, eps=settings.prepare.eps)
         except ValueError as err:
             raise EvalDataError(f"dataset={name} (data_dir={str(path)!r}): {err}") from None
         if name == "meshes":
@@ -274,9 +275,12 @@ class ModelResult(NamedTuple):
 
 
 def run_model(task: ModelTask) -> ModelResult:
-    """Every job's episode on one model (in a worker process, or in this one)."""
+    """Every job's episode on one model (in a worker process, or in this one), with its metrics
+    (:mod:`nbv.eval.metrics`: the ground truth's KD-tree and each view's distances computed once
+    for all the model's episodes)."""
     settings, ds = task.settings, nbv.dataset.open(task.path)
     model = ds.model(task.key, viewspaces=settings.viewspaces)
+    metrics = ModelMetrics(model, task.ctx.eps)
     records = []
     for job in task.jobs:
         # Repeat 0 keeps the generator of a single run: one seed's numbers stay.
@@ -285,10 +289,10 @@ def run_model(task: ModelTask) -> ModelResult:
         policy = METHODS[job.method].build(task.ctx, rng)
         if job.kind is not None:
             policy = disturbed(job.kind, policy, rng, settings.disturb.radius, job.sigma)
-        records.append(
-            run_record(model, job.viewspace, job.start, job.method, policy, task.dataset,
-                       settings.n_views, job.check, job.repeat)
-        )  # fmt: skip
+        record = run_record(model, job.viewspace, job.start, job.method, policy, task.dataset,
+                            settings.n_views, job.check, job.repeat)  # fmt: skip
+        record.metrics = metrics.episode(job.viewspace, record.views, record.coverage)
+        records.append(record)
     return ModelResult(task.dataset, task.key, records, model.gt_hull_error, model.gt_hull_volume)
 
 
@@ -381,11 +385,17 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     bar.close()
     seconds = time.perf_counter() - t0
     records: list[EpisodeRecord] = []
+    filled = 0
     for info, ds in opened:
         for key in info.keys:
             if (info.name, key) in done_before:
-                model = ds.model(key, viewspaces=())
-                records += done_before[(info.name, key)]
+                done = done_before[(info.name, key)]
+                # A log written before the metrics existed: compute them from the views read
+                # back (they are functions of the views and the dataset alone).
+                lacking = sorted({r.viewspace for r in done if not r.metrics})
+                model = ds.model(key, viewspaces=tuple(lacking))
+                filled += fill_metrics(done, model, float(ds.attrs["eps"]))
+                records += done
                 error, volume = model.gt_hull_error, model.gt_hull_volume
             else:
                 result = results[(info.name, key)]
@@ -396,6 +406,8 @@ def evaluate(settings: EvalSettings) -> Evaluation:
             elif not volume > 0:
                 infos[info.name].flat.append(key)
     resumed = sum(len(d) for d in done_before.values())
+    if filled:
+        log.info("computed the metrics of %d episodes read back without them", filled)
     return Evaluation(settings, records, skipped, [info for info, _ in opened], seconds, resumed)
 
 

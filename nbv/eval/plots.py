@@ -4,6 +4,9 @@
   (the paper's Fig. 15 and 17);
 * ``vig_by_view.png``: mean VIG after each view (Fig. 13);
 * ``disturbance.png``: AUC of each method with and without each disturbance (Fig. 18);
+* ``metrics.png``: the field's metrics per method (final coverage, views to 90 % of the
+  viewspace's coverage, Chamfer distance, F-score at 2 eps, camera path), one row of panels per
+  dataset and viewspace;
 * ``reconstruction.png``: one convex-hull set-cover episode: the start view's cloud, its hull and
   the chosen cameras, and the reconstruction after all views (Fig. 16).
 """
@@ -19,6 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402 - the backend must be chosen first
 import numpy as np  # noqa: E402
 
 from nbv.eval.disturb import auc_changes  # noqa: E402
+from nbv.eval.metric_tables import episode_values, summaries  # noqa: E402
 from nbv.eval.tables import groups, method_rank, order_methods  # noqa: E402
 from nbv.policies.registry import METHODS, ORACLE, PLANNERS  # noqa: E402
 
@@ -139,6 +143,44 @@ def noise_figure(evaluation, path: Path) -> bool:
     return True
 
 
+#: metrics.png's panels: (summary key, title).
+METRIC_PANELS = (
+    ("final_coverage", "final coverage"),
+    ("restricted_90", "views to 90 % (censored: n + 1)"),
+    ("chamfer", "Chamfer distance (lower: better)"),
+    ("fscore_2eps", "F-score at 2 eps"),
+    ("path_length", "camera path (lower: better)"),
+)
+
+
+def metrics_figure(evaluation, path: Path) -> bool:
+    """Horizontal bars of each method's mean metrics, a row of panels per dataset and viewspace;
+    False when no record has metrics."""
+    n = evaluation.settings.n_views
+    summary = summaries(episode_values([r for r in evaluation.records if r.check is None], n))
+    rows = sorted({k[:2] for k in summary})
+    if not rows:
+        return False
+    size = (3.3 * len(METRIC_PANELS), 0.8 + 0.22 * len(METHODS) * len(rows))
+    fig, axes = plt.subplots(len(rows), len(METRIC_PANELS), figsize=size, squeeze=False)
+    for i, (d, vs) in enumerate(rows):
+        methods = order_methods(k[2] for k in summary if k[:2] == (d, vs))
+        y = np.arange(len(methods))
+        for j, (key, title) in enumerate(METRIC_PANELS):
+            ax = axes[i, j]
+            values = [summary[(d, vs, m, None)][key] for m in methods]
+            ax.barh(y, np.nan_to_num(values), color=[_style(m)[0] for m in methods])
+            ax.set_yticks(y, methods if j == 0 else [""] * len(methods), fontsize=7)
+            ax.invert_yaxis()
+            ax.tick_params(axis="x", labelsize=7)
+            ax.grid(axis="x", alpha=0.3)
+            ax.set_title(f"{title}\n{d}, {vs}" if i == 0 else f"{d}, {vs}", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
 def _example(evaluation):
     """The episode drawn in reconstruction.png: the first convex-hull (else any) episode."""
     for method in (*PLANNERS, ORACLE.name):
@@ -236,6 +278,8 @@ def draw_all(evaluation) -> list[Path]:
         written.append(out / "disturbance.png")
     if noise_figure(evaluation, out / "noise.png"):
         written.append(out / "noise.png")
+    if metrics_figure(evaluation, out / "metrics.png"):
+        written.append(out / "metrics.png")
     if reconstruction_figure(evaluation, out / "reconstruction.png"):
         written.append(out / "reconstruction.png")
     return written

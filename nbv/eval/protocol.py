@@ -38,7 +38,12 @@ class EpisodeRecord:
             without the view simulation, the paper's "online" time).
         notes: what the policy had to work around.
         repeat: which seed of a stochastic method's episode (0 for the others).
-        counts: the planner's pick counts (``planned``, ``zero_gain``; empty for the others).
+        counts: the policy's counts (a planner's ``planned``, ``zero_gain``; empty for a
+            method that counts nothing).
+        metrics: the field's metrics of the episode (final coverage, views to 90 % and 95 % of
+            the viewspace's total coverage, Chamfer distance and F-scores, camera path length:
+            :mod:`nbv.eval.metrics`); empty for a record read back from a log written before
+            they existed, until :func:`nbv.eval.metrics.fill_metrics` computes them.
     """
 
     method: str
@@ -57,6 +62,7 @@ class EpisodeRecord:
     notes: list[str] = field(default_factory=list)
     repeat: int = 0
     counts: dict[str, int] = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """Plain JSON types; NaN becomes None."""

@@ -3,10 +3,14 @@
 * ``results.json``: the settings, the skipped methods, the datasets, and every episode
   (:class:`nbv.eval.protocol.EpisodeRecord`; undefined VIG is ``null``).
 * ``summary.csv``: one row per (dataset, viewspace, method, check): episodes, mean AUC and its
-  standard error, mean coverage and VIG after each view, mean seconds per reconstruction.
-* ``report.md``: the tables (AUC, coverage and VIG by view, AUC per category, convex-hull
-  replanning, disturbance checks, timing beside the paper's Table 1), the paper's claims with
-  the measured numbers, and what the run had to work around."""
+  standard error, mean coverage and VIG after each view, mean seconds per reconstruction, then
+  the field's metrics (:mod:`nbv.eval.metric_tables`): final coverage, views to 90 % / 95 %
+  (mean of the uncensored, censored count, restricted mean), Chamfer and F-scores, path
+  lengths, seconds per decision of each stage, and the policy's tie counts when it has them.
+* ``report.md``: the tables (AUC, coverage and VIG by view, AUC per category, the field's
+  metrics with paired intervals, spread's ties, convex-hull replanning, disturbance checks,
+  timing beside the paper's Table 1 and per decision), the paper's claims with the measured
+  numbers, and what the run had to work around."""
 
 from __future__ import annotations
 
@@ -22,6 +26,16 @@ import numpy as np
 from nbv.assets.weights import is_shipped
 from nbv.eval.claims import claims
 from nbv.eval.disturb import auc_changes
+from nbv.eval.metric_tables import (
+    DECISION_STAGES,
+    MEANS,
+    decision_table,
+    episode_values,
+    metrics_tables,
+    summaries,
+    tie_lines,
+)
+from nbv.eval.metrics import REACH_FRACTIONS
 from nbv.eval.tables import (
     category_tables,
     curve_tables,
@@ -82,6 +96,8 @@ def write_csv(evaluation, path: Path) -> None:
     header += [f"coverage_{i + 1}" for i in range(n_views)]
     header += [f"vig_{i + 1}" for i in range(n_views)]
     header += ["seconds_total", "seconds_online"]
+    header += list(METRIC_COLUMNS)
+    metrics = summaries(episode_values(evaluation.records, n_views))
     handle = io.StringIO()
     writer = csv.writer(handle, lineterminator="\n")
     writer.writerow(header)
@@ -96,8 +112,29 @@ def write_csv(evaluation, path: Path) -> None:
         row += [f"{c:.6f}" for c in s["coverage"]]
         row += ["" if not np.isfinite(v) else f"{v:.6f}" for v in s["vig"]]
         row += [f"{s['total']:.6f}", f"{s['online']:.6f}"]
+        m = metrics.get((dataset, vs, method, check))
+        row += [_cell(m.get(c)) if m else "" for c in METRIC_COLUMNS]
         writer.writerow(row)
     write_text(path, handle.getvalue())
+
+
+#: summary.csv's columns of the field's metrics (:func:`nbv.eval.metric_tables.summaries`):
+#: ``views_to_<n>`` the mean over uncensored episodes, ``censored_<n>`` how many were censored,
+#: ``restricted_<n>`` the mean with a censored episode counted ``n_views + 1``; ``stage_<s>`` mean
+#: seconds of stage ``s`` per decision; ``ties`` and ``tie_decisions`` summed over episodes.
+METRIC_COLUMNS: tuple[str, ...] = (
+    *MEANS,
+    *(f"{k}_{n}" for n in REACH_FRACTIONS for k in ("views_to", "censored", "restricted")),
+    "decisions",
+    *(f"stage_{s}" for s in DECISION_STAGES),
+    "ties",
+    "tie_decisions",
+)
+
+
+def _cell(value) -> str:
+    """A CSV cell: empty for a missing or undefined value."""
+    return "" if value is None or not np.isfinite(value) else f"{value:.6g}"
 
 
 def verdict_of(diff: Interval, better: str, other: str) -> str:
@@ -269,6 +306,8 @@ def report_markdown(evaluation) -> str:
     )  # fmt: skip
     lines += baseline_tables(records, methods, datasets, viewspaces, s.seed)
     lines += filler_table(g, methods, datasets, viewspaces)
+    lines += tie_lines(records, datasets, viewspaces, s.n_views)
+    lines += metrics_tables(records, datasets, viewspaces, s.n_views, s.seed)
 
     lines += ["", "## Mean coverage after each view", ""]
     lines += curve_tables(g, datasets, viewspaces, s.n_views, "coverage")
@@ -342,6 +381,7 @@ def report_markdown(evaluation) -> str:
             for c, ratio in r.items():
                 rows.append([m, c, fmt(PAPER_TIMES[m][c], 2), fmt(times[m][c], 4), fmt(ratio, 1)])
         lines += md_table(["method", "stage", "paper s", "our s", "paper / ours"], rows)
+    lines += decision_table(records, methods, s.n_views)
 
     lines += ["", "## The paper's claims, measured", ""]
     lines += claims(evaluation)
@@ -369,6 +409,7 @@ PLOT_FILES = (
     "disturbance.png",
     "noise.png",
     "reconstruction.png",
+    "metrics.png",
 )
 
 

@@ -3,6 +3,8 @@
 A reconstruction is one episode: the decisions that pick its views after the start view (9 with
 the default protocol; one plan for a one-shot planner). Stages (see :mod:`nbv.policies`):
 
+* ``map``: the occupancy map's update with the captured views (``ig``, ``hull_ig``,
+  ``ig_learned``, ``vcnbv_map``);
 * ``sampling``: farthest point sampling of the accumulated cloud (PCNBV's input);
 * ``signature``: the spherical signature (PCNBV-sph's input, hull_sco_sph's hull points);
 * ``network``: the forward pass;
@@ -24,7 +26,7 @@ import numpy as np
 
 from nbv.policies.registry import METHODS
 
-STAGES = ("sampling", "signature", "network", "hull", "simulation", "set_cover", "gains")
+STAGES = ("map", "sampling", "signature", "network", "hull", "simulation", "set_cover", "gains")
 COLUMNS = (*STAGES, "total", "online")
 
 #: The paper's Table 1 (seconds per 9-view reconstruction; FACTS.md): our method -> stage -> s,
