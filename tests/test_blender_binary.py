@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import _in_ci
+from scipy.spatial import cKDTree
 
 from nbv.assets.meshes import Mesh, load_mesh, normalise, sample_surface
 from nbv.assets.synthetic import build, catalogue
@@ -104,19 +105,40 @@ def _synthetic_models() -> dict[str, Mesh]:
     return {f"{c}_{e.index}": Mesh(*build(e, 0), c) for c, e in chosen}
 
 
-def _coverage_bits(depth: np.ndarray, poses: np.ndarray, gt: np.ndarray) -> np.ndarray:
-    """The dataset's (V, 2048) packed coverage bits of one mesh's full-resolution views."""
-    clouds = [backproject(d, CAMERA, pose) for d, pose in zip(depth, poses, strict=True)]
-    return coverage_bits(clouds, gt, DEFAULT_EPS)
+def _clouds(depth: np.ndarray, poses: np.ndarray) -> list[np.ndarray]:
+    """One mesh's full-resolution view clouds, world frame."""
+    return [backproject(d, CAMERA, pose) for d, pose in zip(depth, poses, strict=True)]
+
+
+#: How far from eps a ground-truth point's nearest view point may lie for the two renderers to
+#: disagree on its coverage bit: the depth tolerance the renderers agree within (1e-4).
+NEAR_EPS = 1e-4
+
+
+def _unexplained_bit_differences(
+    clouds: tuple[list[np.ndarray], list[np.ndarray]], gt: np.ndarray
+) -> list[tuple[int, int, float]]:
+    """(view, gt point, distance) of the coverage bits the two renderings disagree on where the
+    point's nearest view point (in either rendering) is not within NEAR_EPS of eps: a point that
+    close to the threshold may flip with a depth difference the renderers are allowed."""
+    bits = [coverage_bits(c, gt, DEFAULT_EPS) for c in clouds]
+    differ = np.unpackbits(bits[0] ^ bits[1], axis=1)[:, : len(gt)]
+    out = []
+    for view, point in zip(*np.nonzero(differ), strict=True):
+        near = [cKDTree(c[view]).query(gt[point])[0] for c in clouds]
+        if min(abs(d - DEFAULT_EPS) for d in near) > NEAR_EPS:
+            out.append((int(view), int(point), float(min(near))))
+    return out
 
 
 @pytest.mark.parametrize("mesh_set", ["shared", "synthetic"])
 def test_binary_depth_and_coverage_match_the_wheel(binary, mesh_set):
     """The binary and the bpy wheel on the same meshes, at the dataset's 640 x 480: depth within
     1e-4 on >= 99.9% of the pixels both hit, hit masks differing on <= 0.01% of the pixels, and
-    equal coverage bits (16384 ground-truth points, eps sqrt(5e-5)). Bits can differ where a
-    ground-truth point lies within ~1e-5 of eps from the nearest view point: 5 of 131,072 bits
-    did on one of 22 models in the README's measurement, none do on these."""
+    equal coverage bits (16384 ground-truth points, eps sqrt(5e-5)) but where a ground-truth
+    point's nearest view point lies within 1e-4 of eps, where that depth difference may flip it
+    (5 of 131,072 bits did on one of 22 models in an earlier measurement; with eps sqrt(5e-5),
+    1 of the teapot's, 2026-12-03)."""
     meshes = _shared_meshes() if mesh_set == "shared" else _synthetic_models()
     poses = viewspace_poses(original_viewspace()[VIEWS])
     jobs = [RenderJob(key, m.vertices, m.faces, poses) for key, m in meshes.items()]
@@ -130,10 +152,11 @@ def test_binary_depth_and_coverage_match_the_wheel(binary, mesh_set):
         assert stats["mask_mismatch"] <= 1e-4 * wheel[key].size, (key, stats)
         assert stats["common"] >= 0.02 * wheel[key].size, (key, stats)  # the object is seen
         gt = sample_surface(mesh, 16384, np.random.default_rng(0))
-        bits = [_coverage_bits(depth[key], poses, gt) for depth in (wheel, other)]
-        assert bits[0].shape == (len(VIEWS), 2048) and bits[0].any()
-        differ = int(np.unpackbits(bits[0] ^ bits[1]).sum())
-        assert differ == 0, (key, f"{differ} coverage bits differ")
+        clouds = tuple(_clouds(depth[key], poses) for depth in (wheel, other))
+        bits = coverage_bits(clouds[0], gt, DEFAULT_EPS)
+        assert bits.shape == (len(VIEWS), 2048) and bits.any()
+        unexplained = _unexplained_bit_differences(clouds, gt)
+        assert not unexplained, (key, f"coverage bits differ away from eps: {unexplained}")
 
 
 def test_the_script_refuses_a_version_outside_the_range(binary, tmp_path):
