@@ -58,6 +58,7 @@ class ProtocolConfig:
         eps: coverage distance (world units; objects fit in a sphere of radius 0.5).
         n_gt: ground-truth points sampled uniformly on the normalised mesh.
         points_per_view: points kept of each view (a seeded random subset); 0 keeps all.
+        viewspaces: the viewspaces the dataset renders and the evaluation runs on.
     """
 
     start_views: list[int] = MISSING
@@ -65,6 +66,7 @@ class ProtocolConfig:
     eps: float = MISSING
     n_gt: int = MISSING
     points_per_view: int = MISSING
+    viewspaces: list[str] = MISSING
 
 
 @dataclass

@@ -197,6 +197,9 @@ def generate(settings: GenerationSettings) -> Summary:
         settings.split_fractions,
         settings.seed,
     )
+    if settings.models is not None:
+        wanted = set(settings.models)
+        models = [m for m in models if m.key in wanted]
     mine = models[settings.shard :: settings.num_shards]
     if settings.limit is not None:
         mine = mine[: settings.limit]

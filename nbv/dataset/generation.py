@@ -11,8 +11,10 @@ its default and allowed range (:func:`nbv.utils.fields.setting`); a bad value ra
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 from nbv.dataset.schema import SCHEMA_VERSION
 from nbv.dataset.sources import SOURCES
@@ -97,6 +99,26 @@ class Renderer:
     noise: Noise = field(default_factory=Noise)
 
 
+def viewspace_map(value: Any) -> dict[str, str]:
+    """``viewspaces`` as a config gives it: a list of names (each name its own source, as
+    ``conf/protocol/`` lists them), a map name -> source, or null (the default two).
+
+    Raises:
+        ValueError: neither a list nor a map.
+    """
+    if value is None:
+        return dict(DEFAULT_VIEWSPACES)
+    if isinstance(value, Mapping):
+        return {str(k): str(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return {str(v): str(v) for v in value}
+    raise ValueError(f"viewspaces={value!r}: must be a list of names or a map name: source")
+
+
+#: The viewspaces every dataset renders unless told otherwise.
+DEFAULT_VIEWSPACES = {"original": "original", "permuted": "permuted"}
+
+
 @dataclass(frozen=True)
 class GenerationSettings:
     """Everything :func:`nbv.dataset.generate.generate` needs (``conf/dataset.yaml``'s keys but
@@ -118,8 +140,12 @@ class GenerationSettings:
             array task per shard); in ``0 .. num_shards - 1``.
         num_shards: the number of shards (>= 1).
         limit: stop after this many models of the shard; null = all.
-        viewspaces: name -> ``original``, ``permuted`` or the path of a viewspace text file
-            (rows ``x y z``); at least one.
+        models: only the models of these keys (in the source's order); null = all. The
+            evaluator renders a viewspace a dataset lacks for its models this way.
+        viewspaces: the viewspaces to render: a list of names (``original``, ``permuted``,
+            ``sphere_<n>``, ``hemisphere_<n>``; ``conf/protocol/`` gives this list), or a map
+            name -> one of those or the path of a viewspace text file (rows ``x y z``); at least
+            one.
         intrinsics: the camera (YAML key ``camera``: ``conf/camera/``, ``camera=small`` for
             smoke runs).
         n_gt: ground-truth points sampled uniformly on each normalised mesh (>= 1).
@@ -143,10 +169,15 @@ class GenerationSettings:
     limit: int | None = setting(
         None, check=lambda v: v is None or v >= 0, allowed="null or an integer >= 0"
     )
+    models: tuple[str, ...] | None = None
     viewspaces: dict[str, str] = setting(
-        factory=lambda: {"original": "original", "permuted": "permuted"},
+        factory=lambda: dict(DEFAULT_VIEWSPACES),
         check=lambda v: len(v) >= 1,
-        allowed="at least one name: viewspace entry",
+        allowed="at least one viewspace",
+        config=Any,
+        convert=viewspace_map,
+        # null in the schema: a list (conf/protocol/) or a map may replace it.
+        config_default=None,
     )
     intrinsics: Intrinsics = field(default_factory=Intrinsics.centred)
     n_gt: int = setting(DEFAULT_N_GT, **_at_least(1))
@@ -171,6 +202,42 @@ class GenerationSettings:
         """The depth-sensor model applied to every view, or None."""
         return self.renderer.noise.model
 
+    @classmethod
+    def from_identity(cls, identity: dict, out_dir: Path, **changes: Any) -> GenerationSettings:
+        """The settings a dataset recorded (its :meth:`data_identity`, the root attribute
+        ``config``), to render more of the same data: ``changes`` replace fields (e.g.
+        ``viewspaces``, ``models``); ``num_shards`` is 1 and ``progress`` as given.
+
+        Raises:
+            ValueError: an identity of another schema version (the message names both).
+        """
+        if identity.get("schema_version") != SCHEMA_VERSION:
+            raise ValueError(
+                f"the dataset's schema version {identity.get('schema_version')!r} is not this "
+                f"code's {SCHEMA_VERSION!r}: make the dataset again"
+            )
+        noise = identity.get("noise")
+        values: dict[str, Any] = {
+            "source": identity["source"],
+            "root": identity["root"],
+            "categories": tuple(identity["categories"]) if identity["categories"] else None,
+            "synthetic": Synthetic(identity["counts"]),
+            "split_fractions": identity["split_fractions"],
+            "seed": identity["seed"],
+            "viewspaces": identity["viewspaces"],
+            "intrinsics": Intrinsics(**identity["camera"]),
+            "n_gt": identity["n_gt"],
+            "eps": identity["eps"],
+            "points_per_view": identity["points_per_view"],
+            "keep_depth": identity["keep_depth"],
+            "renderer": Renderer(
+                backend=identity["backend"],
+                noise=Noise(**noise, enabled=True) if noise is not None else Noise(),
+            ),
+            "models": tuple(identity["models"]) if "models" in identity else None,
+        }
+        return cls(out_dir=out_dir, **{**values, **changes})
+
     def data_identity(self) -> dict:
         """The settings that determine the arrays (must match to resume into a folder)."""
         noise = self.noise
@@ -192,4 +259,5 @@ class GenerationSettings:
             "backend": self.renderer.backend,
             # Only when on: datasets made before the option keep their identity.
             **({"noise": asdict(noise)} if noise is not None else {}),
+            **({"models": list(self.models)} if self.models is not None else {}),
         }

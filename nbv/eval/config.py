@@ -31,13 +31,16 @@ from nbv.config.schema import (
 from nbv.config.settings import Entry, check_ranges, setting
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
-from nbv.geometry.viewspace import get_viewspace
+from nbv.geometry.viewspace import ViewspaceError, get_viewspace, is_named
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
 from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS
 
 DATASETS = ("unseen", "test", "meshes")
+#: The two viewspaces every dataset renders (the networks' and the permuted one).
 VIEWSPACES = ("original", "permuted")
+#: What ``viewspace`` may name, as a message lists it.
+VIEWSPACE_CHOICES = ("original", "permuted", "sphere_<n>", "hemisphere_<n>", "a file of x y z rows")
 BACKENDS = ("raycast", "blender")
 # TODO(issue 28): one shared constant for the points kept per view (also nbv/plan/config.py
 # and nbv/dataset/generation.py); conf/protocol/ sets the value users get.
@@ -76,6 +79,20 @@ def _allowed(key: str, values: tuple, allowed: tuple, empty_ok: bool = False) ->
     if bad:
         raise EvalConfigError(
             f"{key}: unknown {', '.join(map(repr, bad))}; allowed: {', '.join(allowed)}"
+        )
+    if len(set(values)) != len(values):
+        raise EvalConfigError(f"{key} lists a name twice: {list(values)}")
+
+
+def _viewspaces(key: str, values: tuple[str, ...], empty_ok: bool = False) -> None:
+    """Refuse a viewspace that is neither a name :func:`~nbv.geometry.viewspace.is_named` knows
+    nor a file of ``x y z`` rows, and a list naming one twice."""
+    if not values and not empty_ok:
+        raise EvalConfigError(f"{key} is empty; allowed: {', '.join(VIEWSPACE_CHOICES)}")
+    bad = [v for v in values if not is_named(v) and not Path(v).is_file()]
+    if bad:
+        raise EvalConfigError(
+            f"{key}: unknown {', '.join(map(repr, bad))}; allowed: {', '.join(VIEWSPACE_CHOICES)}"
         )
     if len(set(values)) != len(values):
         raise EvalConfigError(f"{key} lists a name twice: {list(values)}")
@@ -177,7 +194,7 @@ class DisturbSettings:
 
     def __post_init__(self) -> None:
         _allowed("disturb.checks", self.checks, CHECKS, empty_ok=True)
-        _allowed("disturb.viewspace", self.viewspaces, VIEWSPACES, empty_ok=True)
+        _viewspaces("disturb.viewspace", self.viewspaces, empty_ok=True)
         _group_ranges(self, "disturb")
 
 
@@ -206,7 +223,12 @@ class EvalSettings:
         prepare: how ``mesh_dir`` is turned into a dataset (:class:`PrepareSettings`).
         viewspaces: the viewspaces to run on (key ``viewspace``: a name or a list): ``original``
             (the networks' training viewspace) and/or ``permuted`` (other camera positions in
-            another order: the networks' indices point elsewhere).
+            another order: the networks' indices point elsewhere), or a generated one:
+            ``hemisphere_<n>`` / ``sphere_<n>`` (a Fibonacci lattice of n views; the protocols
+            ``protocol=hemisphere_30`` and ``protocol=sphere_32`` set them with their start
+            views) or a file of ``x y z`` rows. Views the dataset lacks are rendered once, with
+            the dataset's own settings, into ``prepare.dir``. A network with one output per view
+            of another viewspace is skipped there, and the report says so.
         start_views: the episodes' start views (indices into every selected viewspace);
             non-empty.
         n_views: views per episode, the start view included; at least 2.
@@ -284,7 +306,7 @@ class EvalSettings:
             object.__setattr__(self, "datasets", derived)
         _allowed("methods", self.methods, tuple(METHODS))
         _allowed("dataset", self.datasets, DATASETS)
-        _allowed("viewspace", self.viewspaces, VIEWSPACES)
+        _viewspaces("viewspace", self.viewspaces)
         missing = sorted(set(NETWORK_INPUTS) & set(self.methods) - set(self.checkpoints))
         if missing:
             raise EvalConfigError(
@@ -296,7 +318,17 @@ class EvalSettings:
         if not isinstance(self.hull.dilate, bool):
             raise EvalConfigError(f"hull.dilate={self.hull.dilate!r}: must be true or false")
         for vs in self.viewspaces:
-            check_views("start_views", self.start_views, vs, len(get_viewspace(vs)))
+            try:
+                n = len(get_viewspace(vs))
+            except ViewspaceError as err:
+                raise EvalConfigError(f"viewspace={vs}: {err}") from None
+            if max(self.start_views) >= n and vs not in VIEWSPACES:
+                raise EvalConfigError(
+                    f"start_views={[v for v in self.start_views if v >= n]}: the viewspace "
+                    f"{vs!r} has {n} views (indices 0..{n - 1}); give start_views=[...] or a "
+                    "protocol that sets them for it (protocol=hemisphere_30, protocol=sphere_32)"
+                )
+            check_views("start_views", self.start_views, vs, n)
         if self.disturb.checks and self.check_viewspaces and not self.check_start_views:
             raise EvalConfigError(
                 f"disturb.start_views={list(self.disturb.start_views)}: none of them is in "

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import logging
 import os
 import time
@@ -20,14 +21,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
+import numpy as np
+
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
 from nbv.dataset.reader import Dataset
+from nbv.dataset.records import ModelData
 from nbv.eval.config import EvalSettings
 from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.metrics import ModelMetrics, fill_metrics
-from nbv.eval.prepare import prepare_meshes
+from nbv.eval.prepare import prepare_meshes, rendered_viewspaces, stored_name
 from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
 from nbv.planning.gain_scorer import load_scorer
 from nbv.policies.network import NetworkPolicy
@@ -60,6 +64,9 @@ class DatasetInfo:
             undefined, NaN; told apart from a flat ground truth).
         excluded: ``(key, reason)`` of models left out because their episodes chose a network
             checkpoint (scoring them would report on the selection data).
+        sizes: viewspace -> its number of views.
+        rendered: the dataset of the viewspaces ``path`` lacks, rendered by the evaluation
+            (:func:`nbv.eval.prepare.rendered_viewspaces`); None when it lacked none.
     """
 
     name: str
@@ -69,6 +76,8 @@ class DatasetInfo:
     flat: list[str] = field(default_factory=list)
     qhull_failures: list[tuple[str, str]] = field(default_factory=list)
     excluded: list[tuple[str, str]] = field(default_factory=list)
+    sizes: dict[str, int] = field(default_factory=dict)
+    rendered: Path | None = None
 
 
 @dataclass
@@ -78,7 +87,8 @@ class Evaluation:
     Attributes:
         settings: the settings it ran with.
         records: every episode, the methods' and the checks'.
-        skipped: method -> why it did not run.
+        skipped: method -> why it did not run (``<method> on <viewspace>`` for a method that
+            ran on other viewspaces).
         datasets: the evaluated datasets.
         seconds: wall time of the episodes run by this call.
         resumed: how many of the records were read back from the episode log of an earlier,
@@ -107,9 +117,12 @@ def _spread(keys: list[str], categories: list[str]) -> list[str]:
 def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
     """Open (or prepare) each selected dataset and pick its models.
 
+    A viewspace the dataset lacks is rendered for its models (once, cached:
+    :func:`nbv.eval.prepare.rendered_viewspaces`).
+
     Raises:
-        EvalDataError: a missing or empty dataset, a viewspace it lacks, a start view outside
-            a viewspace, or viewspaces of different sizes.
+        EvalDataError: a missing or empty dataset, a viewspace it lacks and cannot render, or
+            a start view outside a viewspace.
     """
     out = []
     for name in settings.datasets:
@@ -142,21 +155,66 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
                 f"dataset={name}: {path} holds no {which} (categories there: {ds.categories})"
             )
         keys = _spread(keys, [ds.index[k][1] for k in keys])[: settings.limit]
-        for vs in settings.viewspaces:
-            if vs not in ds.viewspaces:
-                raise EvalDataError(
-                    f"viewspace={vs}: {path} has no such viewspace; it has "
-                    f"{', '.join(ds.viewspaces)}"
-                )
-            n = len(ds.viewspaces[vs])
+        sizes = {vs: len(ds.viewspaces[vs]) for vs in settings.viewspaces if vs in ds.viewspaces}
+        lacking = [vs for vs in settings.viewspaces if vs not in ds.viewspaces]
+        rendered = None
+        if lacking:
+            text = ds.attrs.get("config")
+            try:
+                rendered = rendered_viewspaces(path, json.loads(text) if text else {}, lacking,
+                                               keys, Path(settings.prepare.dir),
+                                               settings.progress)  # fmt: skip
+                extra = nbv.dataset.open(rendered, eps=settings.prepare.eps)
+            except ValueError as err:
+                raise EvalDataError(f"viewspace={','.join(lacking)}: {err}") from None
+            sizes.update({vs: len(extra.viewspaces[stored_name(vs)]) for vs in lacking})
+        for vs, n in sizes.items():
             bad = [s for s in settings.start_views if s >= n]
             if bad:
                 raise EvalDataError(f"start_views {bad} are outside viewspace {vs} (0..{n - 1})")
         failures += [f for f in ds.failures if f not in failures]
-        out.append((DatasetInfo(name, path, keys, failures), ds))
-    sizes = {len(ds.viewspaces[vs]) for _, ds in out for vs in settings.viewspaces}
-    if len(sizes) > 1:
-        raise EvalDataError(f"the viewspaces have different numbers of views {sorted(sizes)}")
+        out.append((DatasetInfo(name, path, keys, failures, sizes=sizes, rendered=rendered), ds))
+    return out
+
+
+def read_model(
+    ds: Dataset, rendered: Path | None, key: str, viewspaces: tuple[str, ...]
+) -> ModelData:
+    """One model with the views of ``viewspaces``: from the dataset, and those it lacks from
+    the viewspaces the evaluation rendered (``rendered``), under the names the settings give.
+
+    Raises:
+        EvalDataError: the rendered views' ground truth is not the dataset's (the dataset was
+            made again since they were rendered, under other settings).
+    """
+    own = tuple(vs for vs in viewspaces if vs in ds.viewspaces)
+    model = ds.model(key, viewspaces=own)
+    lacking = [vs for vs in viewspaces if vs not in ds.viewspaces]
+    if lacking:
+        extra = nbv.dataset.open(rendered).model(key, tuple(stored_name(v) for v in lacking))
+        if not np.array_equal(extra.gt_points, model.gt_points):
+            raise EvalDataError(
+                f"{rendered}: model {key!r}: the rendered viewspaces' ground truth is not the "
+                "dataset's; delete that folder to render them again"
+            )
+        model.views.update({vs: extra.views[stored_name(vs)] for vs in lacking})
+    return model
+
+
+def unusable(settings: EvalSettings, networks: dict, sizes: dict[str, int]) -> dict[str, str]:
+    """``<method> on <viewspace>`` -> why: the networks with one output per view of a viewspace
+    of another size (PCNBV's 33 outputs on ``hemisphere_30``)."""
+    out = {}
+    for method, policy in networks.items():
+        if not isinstance(policy, NetworkPolicy):
+            continue  # the viewspace-conditioned networks score any direction
+        outputs = policy.model.config.n_views
+        for vs in settings.viewspaces:
+            if sizes[vs] != outputs:
+                out[f"{method} on {vs}"] = (
+                    f"its network has one output per view of a {outputs}-view viewspace; "
+                    f"{vs} has {sizes[vs]} views"
+                )
     return out
 
 
@@ -193,10 +251,13 @@ def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, Networ
 
 
 def load_networks(
-    settings: EvalSettings, n_views: int
+    settings: EvalSettings, n_views: int | None
 ) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
     """The selected network methods' checkpoints, as they are (no fallback to the shipped
-    weights: :func:`with_shipped_weights`): (method -> policy, method -> skip reason)."""
+    weights: :func:`with_shipped_weights`): (method -> policy, method -> skip reason).
+
+    ``n_views``: the viewspace's size a PCNBV network must have; None: any (see
+    :func:`unusable`)."""
     from nbv.models.checkpoints import CheckpointError
 
     networks, skipped = {}, {}
@@ -229,13 +290,15 @@ class Job(NamedTuple):
     sigma: float = 0.0
 
 
-def _jobs(settings: EvalSettings, runnable: list[str]) -> list[Job]:
+def _jobs(settings: EvalSettings, runnable: list[str], skip: dict[str, str]) -> list[Job]:
     """The episodes to run on every model: the methods (a stochastic one ``random_repeats``
-    times), then the checks (position noise once per sigma)."""
+    times), then the checks (position noise once per sigma); none of a method on a viewspace
+    ``skip`` names (``<method> on <viewspace>``)."""
     jobs = [
         Job(m, None, None, vs, start, r)
         for vs in settings.viewspaces
         for m in runnable
+        if f"{m} on {vs}" not in skip
         for start in settings.start_views
         for r in range(settings.random_repeats if METHODS[m].stochastic else 1)
     ]
@@ -247,7 +310,7 @@ def _jobs(settings: EvalSettings, runnable: list[str]) -> list[Job]:
                 jobs += [
                     Job(m, name, check, vs, start, 0, sigma)
                     for m in check_methods(check)
-                    if m in runnable
+                    if m in runnable and f"{m} on {vs}" not in skip
                     for start in settings.check_start_views
                 ]
     return jobs
@@ -262,6 +325,7 @@ class ModelTask(NamedTuple):
     key: str
     jobs: list[Job]
     ctx: MethodContext
+    rendered: Path | None = None
 
 
 class ModelResult(NamedTuple):
@@ -279,7 +343,7 @@ def run_model(task: ModelTask) -> ModelResult:
     (:mod:`nbv.eval.metrics`: the ground truth's KD-tree and each view's distances computed once
     for all the model's episodes)."""
     settings, ds = task.settings, nbv.dataset.open(task.path)
-    model = ds.model(task.key, viewspaces=settings.viewspaces)
+    model = read_model(ds, task.rendered, task.key, settings.viewspaces)
     metrics = ModelMetrics(model, task.ctx.eps)
     records = []
     for job in task.jobs:
@@ -339,8 +403,10 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     from tqdm import tqdm
 
     opened = open_datasets(settings)
-    n_views = len(opened[0][1].viewspaces[settings.viewspaces[0]])
-    networks, skipped = load_networks(settings, n_views)
+    networks, skipped = load_networks(settings, None)
+    sizes = {vs: n for info, _ in opened for vs, n in info.sizes.items()}
+    skip_on = unusable(settings, networks, sizes)
+    skipped.update(skip_on)
     for method, reason in skipped.items():
         log.warning("skipping %s: %s", method, reason)
     for info, ds in opened:
@@ -350,7 +416,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
 
         torch.set_num_threads(settings.threads)
     runnable = [m for m in settings.methods if m not in skipped]
-    jobs = _jobs(settings, runnable)
+    jobs = _jobs(settings, runnable, skip_on)
     scorer_file = settings.scorer_file() if set(SCORED) & set(runnable) else None
     scorer = load_scorer(scorer_file) if scorer_file else None
     ident = identity(
@@ -370,7 +436,9 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         for key in info.keys:
             done = episodes.done.get((info.name, key))
             if done is None:
-                tasks.append(ModelTask(settings, info.name, info.path, key, jobs, ctx))
+                tasks.append(
+                    ModelTask(settings, info.name, info.path, key, jobs, ctx, info.rendered)
+                )
             else:
                 done_before[(info.name, key)] = done
     bar = tqdm(total=total, desc="episodes", unit="ep", disable=not settings.progress)
@@ -393,7 +461,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
                 # A log written before the metrics existed: compute them from the views read
                 # back (they are functions of the views and the dataset alone).
                 lacking = sorted({r.viewspace for r in done if not r.metrics})
-                model = ds.model(key, viewspaces=tuple(lacking))
+                model = read_model(ds, info.rendered, key, tuple(lacking))
                 filled += fill_metrics(done, model, float(ds.attrs["eps"]))
                 records += done
                 error, volume = model.gt_hull_error, model.gt_hull_volume

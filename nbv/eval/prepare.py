@@ -1,6 +1,10 @@
-"""A folder of meshes turned into a dataset through the dataset pipeline, cached by content.
+"""Data the evaluation renders itself, through the dataset pipeline, cached by content.
 
-The folder is rendered from both viewspaces and scored exactly like a generated dataset
+:func:`prepare_meshes`: a folder of meshes turned into a dataset. :func:`rendered_viewspaces`:
+the views of a viewspace a dataset lacks (``protocol=hemisphere_30`` on the default dataset),
+rendered for its models with the settings it recorded.
+
+A mesh folder is rendered from both viewspaces and scored exactly like a generated dataset
 (:func:`nbv.dataset.generate.generate` with ``source="folder"``). The result lives in
 ``<cache_dir>/<hash>/``, where the hash covers the mesh files (relative path, size, modification
 time) and every setting that shapes the data, ``eps`` and the coverage test included; a later
@@ -11,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 from pathlib import Path
 
 from nbv.assets.meshes import MESH_SUFFIXES
@@ -18,6 +23,9 @@ from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer
 from nbv.eval.config import PrepareSettings
 from nbv.geometry.scores import COVERAGE_TEST
+from nbv.geometry.viewspace import is_named
+
+log = logging.getLogger(__name__)
 
 #: Written in a prepared folder once the dataset is complete.
 DONE_FILE = "prepared.json"
@@ -98,3 +106,79 @@ def prepare_meshes(
     record = {"identity": identity(mesh_dir, settings), "failures": summary.failures}
     done.write_text(json.dumps(record, indent=1))
     return out, [tuple(f) for f in summary.failures]
+
+
+def stored_name(viewspace: str) -> str:
+    """The name a rendered viewspace has in its dataset: a generated or shipped name as it is,
+    a file ``file-<12 hex digits of its path's hash>`` (an HDF5 group name has no ``/``)."""
+    if is_named(viewspace):
+        return viewspace
+    return "file-" + hashlib.sha256(str(Path(viewspace).resolve()).encode()).hexdigest()[:12]
+
+
+def viewspace_sources(names: list[str]) -> dict[str, str]:
+    """stored name (:func:`stored_name`) -> what :func:`nbv.geometry.viewspace.get_viewspace`
+    reads: a generated or shipped name as it is, a file by its absolute path."""
+    return {stored_name(n): n if is_named(n) else str(Path(n).resolve()) for n in names}
+
+
+def rendered_viewspaces(
+    dataset_dir: Path,
+    config: dict,
+    names: list[str],
+    keys: list[str],
+    cache_dir: Path,
+    progress: bool = True,
+) -> Path:
+    """The views of ``names`` that a dataset lacks, rendered for its models ``keys`` with the
+    settings it recorded (its renderer, camera, seed, ground truth, eps, points kept), or the
+    cached result of an earlier call.
+
+    The ground truth of every model is the dataset's (the same seed draws it), so the new
+    viewspaces' coverage bits score against the same points; the caller checks that.
+
+    Args:
+        dataset_dir: the dataset's folder (for messages).
+        config: the generation settings it recorded (root attribute ``config``, parsed).
+        names: viewspace names or files.
+        keys: the models to render.
+        cache_dir: where rendered viewspaces are kept (``prepare.dir``).
+        progress: show the generator's progress bar.
+
+    Returns:
+        The folder of a dataset holding those viewspaces of those models, each under its
+        :func:`stored_name`.
+
+    Raises:
+        ValueError: a dataset whose settings were not recorded, of another schema, or models
+            that could not be rendered (named).
+    """
+    if not config:
+        raise ValueError(
+            f"{dataset_dir}: the dataset records no generation settings, so its views of "
+            f"{', '.join(names)} cannot be rendered; make a dataset with them "
+            f"(python -m nbv.dataset viewspaces=[{','.join(names)}])"
+        )
+    sources = viewspace_sources(names)
+    files = {n: hashlib.sha256(Path(p).read_bytes()).hexdigest() for n, p in sources.items()
+             if not is_named(p)}  # fmt: skip
+    ident = {"dataset": config, "viewspaces": sources, "files": files, "models": sorted(keys),
+             "coverage_test": COVERAGE_TEST}  # fmt: skip
+    text = json.dumps(ident, sort_keys=True)
+    out = Path(cache_dir) / f"viewspaces-{hashlib.sha256(text.encode()).hexdigest()[:16]}"
+    done = out / DONE_FILE
+    if done.exists():
+        return out
+    log.info("rendering viewspaces %s for %d models of %s (once; cached in %s)",
+             ", ".join(names), len(keys), dataset_dir, out)  # fmt: skip
+    settings = GenerationSettings.from_identity(
+        config, out, viewspaces=sources, models=tuple(sorted(keys)), progress=progress
+    )
+    summary = generate(settings)
+    if summary.failures:
+        reasons = "; ".join(f"{k}: {r}" for k, r in summary.failures)
+        raise ValueError(
+            f"{dataset_dir}: rendering viewspaces {', '.join(names)} failed ({reasons})"
+        )
+    done.write_text(json.dumps({"identity": ident, "failures": []}, indent=1))
+    return out

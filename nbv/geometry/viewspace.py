@@ -9,11 +9,15 @@ A viewspace is a ``(V, 3)`` float64 array of camera positions; every camera look
   25-32 at -30 degrees.
 * :func:`permuted_viewspace` is a seeded set of other directions over the same elevation band
   (see its docstring); ``data/viewspaces/permuted_33.txt`` holds the one made with the default seed.
+* :func:`fibonacci_directions` is a Fibonacci lattice of ``n`` directions over the sphere or the
+  upper hemisphere; :func:`get_viewspace` names them ``sphere_<n>`` and ``hemisphere_<n>``
+  (``hemisphere_30`` is GenNBV's uniform hemisphere of 30 views, ``sphere_32`` has SCVP's count).
 * :func:`load_viewspace` reads any text file of ``V`` rows ``x y z``.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import NamedTuple
 
@@ -25,6 +29,12 @@ DATA_DIR = Path(__file__).resolve().parents[2] / "data" / "viewspaces"
 PERMUTED_SEED = 2024
 #: Elevation band of the original viewspace, degrees.
 ELEVATION_BAND = (-30.0, 90.0)
+#: The viewspaces that ship as files.
+SHIPPED = ("original", "permuted")
+#: A generated viewspace's name: ``sphere_<n>`` or ``hemisphere_<n>`` (n >= 2).
+GENERATED_NAME = re.compile(r"(sphere|hemisphere)_([1-9][0-9]*)")
+#: The golden angle, radians: successive lattice points turn by it.
+GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 
 
 def _rot_x(angle: float) -> np.ndarray:
@@ -264,15 +274,55 @@ def save_viewspace(path: str | Path, viewspace: np.ndarray) -> None:
     np.savetxt(path, np.asarray(viewspace, dtype=np.float64), fmt="%.18e")
 
 
+def fibonacci_directions(n: int, hemisphere: bool = False) -> np.ndarray:
+    """``n`` directions of a Fibonacci lattice (nearly even spacing, no two alike), Y up.
+
+    Point ``i`` sits at height ``1 - (2 i + 1) / n`` (sphere) or ``1 - (i + 0.5) / n``
+    (hemisphere: elevations in (0, 90) degrees), azimuth ``i`` times the golden angle from +z
+    towards +x.
+
+    Args:
+        n: number of directions, >= 1.
+        hemisphere: only the half above the equator.
+
+    Returns:
+        (n, 3) float64 unit vectors.
+    """
+    if int(n) != n or n < 1:
+        raise ViewspaceError(f"viewspace.n={n!r}: must be an integer >= 1")
+    i = np.arange(int(n), dtype=np.float64)
+    height = 1.0 - (i + 0.5) / n if hemisphere else 1.0 - (2.0 * i + 1.0) / n
+    r = np.sqrt(np.clip(1.0 - height**2, 0.0, 1.0))
+    azimuth = i * GOLDEN_ANGLE
+    return np.stack([r * np.sin(azimuth), height, r * np.cos(azimuth)], axis=1)
+
+
+def is_named(name: str) -> bool:
+    """Whether ``name`` names a viewspace (shipped or generated) rather than a file."""
+    return name in SHIPPED or GENERATED_NAME.fullmatch(name) is not None
+
+
 def get_viewspace(name_or_path: str | Path) -> np.ndarray:
-    """A viewspace by name (``original``, ``permuted``) or by the path of a text file: (V, 3)."""
-    if str(name_or_path) == "original":
+    """A viewspace by name or by the path of a text file: (V, 3) float64.
+
+    Names: ``original``, ``permuted`` (the shipped files), ``sphere_<n>`` and
+    ``hemisphere_<n>`` (:func:`fibonacci_directions`, Y up).
+
+    Raises:
+        ViewspaceError: neither a name nor a readable file.
+    """
+    name = str(name_or_path)
+    if name == "original":
         return original_viewspace()
-    if str(name_or_path) == "permuted":
+    if name == "permuted":
         return load_viewspace(DATA_DIR / "permuted_33.txt")
+    generated = GENERATED_NAME.fullmatch(name)
+    if generated:
+        return fibonacci_directions(int(generated[2]), generated[1] == "hemisphere")
     path = Path(name_or_path)
     if not path.exists():
         raise ViewspaceError(
-            f"{path}: no such viewspace; use 'original', 'permuted' or a text file of 'x y z' rows"
+            f"{path}: no such viewspace; use 'original', 'permuted', 'sphere_<n>', "
+            "'hemisphere_<n>' or a text file of 'x y z' rows"
         )
     return load_viewspace(path)

@@ -23,7 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nbv.geometry.viewspace import ViewspaceError, angular_distances, get_viewspace
+from nbv.geometry.viewspace import (
+    ViewspaceError,
+    angular_distances,
+    fibonacci_directions,
+    get_viewspace,
+)
 
 #: What ``kind`` a spec may name (``file``: a text file of ``x y z`` rows).
 KINDS = ("original", "permuted", "file", "sphere", "hemisphere", "rings")
@@ -36,8 +41,6 @@ UP_AXES = {
     "-y": (0.0, -1.0, 0.0),
     "-z": (0.0, 0.0, -1.0),
 }
-#: The golden angle, radians: successive lattice points turn by it.
-GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 
 
 def up_rotation(up: str | tuple[float, float, float] | np.ndarray) -> np.ndarray:
@@ -71,7 +74,7 @@ def up_rotation(up: str | tuple[float, float, float] | np.ndarray) -> np.ndarray
 
 
 def fibonacci_sphere(n: int, hemisphere: bool = False, up: str | np.ndarray = "y") -> np.ndarray:
-    """``n`` directions of a Fibonacci lattice (nearly even spacing, no two alike).
+    """``n`` directions of a Fibonacci lattice (:func:`fibonacci_directions`), turned to ``up``.
 
     Args:
         n: number of directions, >= 1.
@@ -81,14 +84,7 @@ def fibonacci_sphere(n: int, hemisphere: bool = False, up: str | np.ndarray = "y
     Returns:
         (n, 3) float64 unit vectors.
     """
-    if int(n) != n or n < 1:
-        raise ViewspaceError(f"viewspace.n={n!r}: must be an integer >= 1")
-    i = np.arange(int(n), dtype=np.float64)
-    height = 1.0 - (i + 0.5) / n if hemisphere else 1.0 - (2.0 * i + 1.0) / n
-    r = np.sqrt(np.clip(1.0 - height**2, 0.0, 1.0))
-    azimuth = i * GOLDEN_ANGLE
-    dirs = np.stack([r * np.sin(azimuth), height, r * np.cos(azimuth)], axis=1)
-    return dirs @ up_rotation(up).T
+    return fibonacci_directions(n, hemisphere) @ up_rotation(up).T
 
 
 def rings(
