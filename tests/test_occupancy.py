@@ -21,9 +21,11 @@ from nbv.planning.occupancy import (
     FREE,
     OCCUPIED,
     UNKNOWN,
+    Misses,
     OccupancyMap,
     OccupancySettings,
     background_directions,
+    mask_directions,
 )
 from nbv.planning.raytrace import traverse
 from nbv.planning.settings import VolumetricSettings
@@ -163,6 +165,57 @@ def test_background_blocks_are_those_no_point_falls_in():
     assert (cam[:, 0] > 0).all() and (cam[:, 2] > 0).all()
     with pytest.raises(ValueError, match="block=0"):
         background_directions(points, pose, camera, block=0)
+
+
+def test_mask_blocks_of_a_full_image_are_the_background_blocks_of_all_its_points():
+    """A rendered view: its no-return mask gives the dataset's background blocks bit for bit
+    (every point kept), and the same however few points are kept."""
+    camera = Intrinsics.centred(64, 48, 48.0)
+    pose = viewspace_poses(np.array([[0.3, 0.4, 0.9]]))[0]
+    mesh = trimesh.creation.icosphere(subdivisions=3, radius=0.35)
+    depth = render_raycast(mesh.vertices, mesh.faces, pose[None], camera)[0]
+    points = backproject(depth, camera, pose)
+    mask = ~np.isfinite(depth)
+    for block in (1, 4, 16, 20):
+        np.testing.assert_array_equal(
+            mask_directions(mask, pose, camera, block),
+            background_directions(points, pose, camera, block),
+        )
+    # A block with one measured (or unknown) pixel is not a miss.
+    partial = np.ones((48, 64), dtype=bool)
+    partial[5, 5] = False
+    assert len(mask_directions(partial, pose, camera, 16)) == 3 * 4 - 1
+    few = points[::40]
+    assert len(background_directions(few, pose, camera, 4)) > len(
+        mask_directions(mask, pose, camera, 4)
+    )
+    grid = OccupancyMap()
+    for keep in (points, few):
+        carved = grid.sensed_voxels(keep, pose, camera, 4, Misses(mask))
+        free, hit = grid.view_voxels(pose[:3, 3], keep, mask_directions(mask, pose, camera, 4))
+        np.testing.assert_array_equal(carved[0], free)
+        np.testing.assert_array_equal(carved[1], hit)
+    with pytest.raises(ValueError, match="block=0"):
+        mask_directions(mask, pose, camera, block=0)
+
+
+def test_a_sensed_view_carves_only_what_its_user_declared():
+    """Unknown no-return carves nothing beyond the hits; a range stops the misses at that planar
+    depth (here inside the map: the far half of the region stays unknown)."""
+    camera = Intrinsics.centred(32, 24, 24.0)
+    # Off the grid's planes: a ray along a voxel face may take either voxel.
+    pose = viewspace_poses(np.array([[0.013, 0.007, 1.0]]))[0]
+    grid = OccupancyMap(OccupancySettings(object_radius=None))
+    none = np.zeros((0, 3))
+    free, hit = grid.sensed_voxels(none, pose, camera, 8, None)
+    assert len(free) == len(hit) == 0
+    everything = np.ones((24, 32), dtype=bool)
+    free, _ = grid.sensed_voxels(none, pose, camera, 8, Misses(everything))
+    near, _ = grid.sensed_voxels(none, pose, camera, 8, Misses(everything, reach=1.0))
+    assert set(near) < set(free)
+    # The rays end at planar depth 1: about z = 0 (the camera is at z = 1, looking down -z).
+    z = grid.centres()[near][:, 2]
+    assert z.min() >= -grid.settings.resolution and grid.centres()[free][:, 2].min() < -0.5
 
 
 def _cup() -> trimesh.Trimesh:

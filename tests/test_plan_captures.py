@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -18,10 +19,11 @@ from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics, opencv_to_blender, project
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.plan.captures import CaptureError, check_rigid, read_captures
+from nbv.plan.captures import CaptureError, check_rigid, read_captures, write_captures
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.method import policy_rng
 from nbv.plan.next_view import plan_captures
+from nbv.plan.object_estimate import EstimateSettings, estimate_object
 from nbv.planning.information_gain import view_gains
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.conditioned_network import ConditionedPolicy
@@ -92,8 +94,9 @@ def write_folder(folder: Path, model, views: list[int], kind: str, scale=1.0, sh
         pose[:3, 3] = pose[:3, 3] * scale + shift
         entries.append({"file": name, "pose": pose.tolist()})
     k = CAMERA
+    # Rendered views: their background is empty space, as the dataset's episode takes it.
     spec = {"intrinsics": dict(width=k.width, height=k.height, fx=k.fx, fy=k.fy, cx=k.cx,
-                               cy=k.cy), "views": entries}  # fmt: skip
+                               cy=k.cy), "no_return": "free", "views": entries}  # fmt: skip
     (folder / "views.json").write_text(json.dumps(spec))
     return folder
 
@@ -247,18 +250,27 @@ def test_bad_captures_are_refused_naming_the_file_and_nothing_is_written(model, 
     assert not (tmp_path / "out").exists()
 
 
-def test_estimated_object_is_the_bounding_box_of_the_captured_points(model, tmp_path):
+def test_an_object_in_free_space_is_estimated_from_its_own_points(model, tmp_path):
+    """The dataset's scene has no support or wall: no plane is removed (a face of the object is
+    seen from outside by a camera), and the sphere is the bounding box of the object's cluster,
+    a subset of the captured points."""
     folder = write_folder(tmp_path / "caps", model, [START, 17], "ply")
     captures, given = read_captures(folder)
     assert given is None
     settings = PlanSettings(out_dir=tmp_path / "out", method="spread", captures=folder,
                             camera=CAMERA)  # fmt: skip
     result = plan_captures(settings)
+    assert result.frame_estimated and result.object_source == "estimated"
+    assert result.estimate["planes"] == [] and result.estimate["support"] is None
+    poses = np.stack([c.pose for c in captures])
+    est = estimate_object(poses, [c.points for c in captures], np.array([0.0, 1.0, 0.0]),
+                          EstimateSettings(), 0)  # fmt: skip
     points = np.concatenate([c.points for c in captures])
-    center = 0.5 * (points.min(axis=0) + points.max(axis=0))
+    assert {tuple(p) for p in est.points} <= {tuple(p) for p in points}
+    center = 0.5 * (est.points.min(axis=0) + est.points.max(axis=0))
     np.testing.assert_allclose(result.frame.center, center)
-    assert result.frame.radius == pytest.approx(np.linalg.norm(points - center, axis=1).max())
-    assert result.frame_estimated
+    assert result.frame.radius == pytest.approx(np.linalg.norm(est.points - center, axis=1).max())
+    assert result.estimate["counts"]["object"] == len(est.points) > len(points) / 2
 
 
 def test_a_16_bit_png_with_depth_scale_reads_as_the_float_depth_quantised(model, tmp_path):
@@ -365,3 +377,54 @@ def test_depth_captures_of_one_camera_make_it_the_planner_camera(model, tmp_path
     ply = plan_captures(dataclasses.replace(settings, captures=write_folder(
         tmp_path / "ply", model, views[:2], "ply")))  # fmt: skip
     assert ply.camera == settings.camera
+
+
+def test_no_return_and_max_range_are_read_per_folder_and_per_view(tmp_path):
+    camera = Intrinsics.centred(8, 6, 6.0)
+    depth = np.full((2, 6, 8), 0.5, dtype=np.float32)
+    depth[:, 0] = 0.0  # the top row: no measurement
+    depth[:, 1] = 2.0  # the next: beyond the range
+    pose = np.eye(4)
+    folder = tmp_path / "caps"
+    write_captures(folder, depth, np.stack([pose, pose]), camera, None, None, max_range=1.0)
+    spec = json.loads((folder / "views.json").read_text())
+    assert "object" not in spec and "no_return" not in spec and spec["max_range"] == 1.0
+    spec["views"][1]["no_return"] = "free"
+    (folder / "views.json").write_text(json.dumps(spec))
+    (unknown, free), _ = read_captures(folder)
+    for c in (unknown, free):
+        assert len(c.points) == 4 * 8  # beyond the range: dropped
+        assert c.misses.reach == 1.0 and c.misses.intrinsics == camera
+    # Beyond the range is free up to it, whatever no_return; no return only where declared.
+    assert unknown.no_return == "unknown" and free.no_return == "free"
+    np.testing.assert_array_equal(unknown.misses.mask, np.arange(6)[:, None] == np.full(8, 1))
+    np.testing.assert_array_equal(free.misses.mask, np.arange(6)[:, None] <= np.full(8, 1))
+    # Without a range, an unknown view declares no misses at all.
+    plain = tmp_path / "plain"
+    write_captures(plain, depth[:1], pose[None], camera, None, None)
+    ((c,), _) = read_captures(plain)
+    assert c.misses is None and len(c.points) == 5 * 8
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "message"),
+    [
+        ("no_return", "maybe", "no_return='maybe'; allowed: unknown, free"),
+        ("max_range", -1, "max_range=-1; must be a positive distance"),
+        ("max_range", "far", "max_range='far'; must be a positive distance"),
+    ],
+)
+def test_bad_sensor_declarations_name_the_key(tmp_path, key, value, message):
+    camera = Intrinsics.centred(8, 6, 6.0)
+    folder = tmp_path / "caps"
+    write_captures(folder, np.full((1, 6, 8), 0.5), np.eye(4)[None], camera, None, None)
+    spec = json.loads((folder / "views.json").read_text())
+    spec["views"][0][key] = value
+    (folder / "views.json").write_text(json.dumps(spec))
+    with pytest.raises(CaptureError, match=re.escape(message)):
+        read_captures(folder)
+    spec["views"][0].pop(key)
+    spec[key] = value
+    (folder / "views.json").write_text(json.dumps(spec))
+    with pytest.raises(CaptureError, match=re.escape(message)):
+        read_captures(folder)

@@ -7,6 +7,8 @@ A capture folder holds ``views.json`` and one file a view (paths relative to the
       "intrinsics": {"width": 640, "height": 480, "fx": 476, "fy": 476, "cx": 319.5, "cy": 239.5},
       "depth_scale": 0.001,                 # world units per stored unit (16-bit PNG, int NPY)
       "object": {"center": [0, 0, 0], "radius": 0.5},   # optional
+      "no_return": "unknown",               # or "free"; optional, per view too
+      "max_range": 1.2,                     # world units (planar depth); optional, per view too
       "views": [
         {"file": "view_00.npy", "pose": [[...], [...], [...], [0, 0, 0, 1]]},
         {"file": "view_01.ply", "pose": [[...], [...], [...], [0, 0, 0, 1]]}
@@ -18,6 +20,14 @@ A capture folder holds ``views.json`` and one file a view (paths relative to the
   depth, through the OpenEXR package) taken with ``intrinsics``, or a point cloud (``.ply``,
   ``.pcd``) in the world frame.
   Depth 0, NaN or infinite is "no measurement".
+* ``no_return`` says what a pixel without a measurement means: ``unknown`` (the default: a
+  depth sensor's dark, shiny or grazing surface, often on the object itself; the planner's map
+  leaves its ray unknown) or ``free`` (nothing is there: a rendered image's background, or a
+  sensor that always returns within its range; the ray is free space up to ``max_range``, or
+  through the whole region without it). A point cloud view declared ``free`` has its image
+  blocks without a point free.
+* ``max_range`` is the sensor's range (planar depth, world units): a measurement beyond it is
+  dropped and its ray is free up to the range (OctoMap's ``maxrange``), whatever ``no_return``.
 * ``pose`` is the camera-to-world 4x4 of the view (world units), OpenCV axes (x right, y down,
   z forward) unless ``axes`` says ``blender``. A view may give its own ``intrinsics`` and
   ``depth_scale``.
@@ -43,7 +53,8 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 
-from nbv.geometry.camera import Intrinsics, backproject, opencv_to_blender, project
+from nbv.geometry.camera import Intrinsics, backproject, opencv_to_blender, project, valid_depth
+from nbv.planning.occupancy import Misses
 
 #: The index file of a capture folder.
 INDEX = "views.json"
@@ -58,6 +69,11 @@ RIGID_TOL = 1e-4
 #: A float depth image whose median is this many times the camera's distance to the object is
 #: in other units than the poses (millimetres against metres is 1000).
 UNIT_RATIO = 20.0
+#: What a pixel without a measurement means (``no_return``); the first is the default.
+NO_RETURN = ("unknown", "free")
+#: The keys of ``views.json`` and of one of its views.
+FOLDER_KEYS = ("axes", "intrinsics", "depth_scale", "object", "no_return", "max_range", "views")
+VIEW_KEYS = ("file", "pose", "intrinsics", "depth_scale", "no_return", "max_range")
 
 
 class CaptureError(ValueError):
@@ -74,6 +90,9 @@ class Capture:
         pose: (4, 4) float64 camera-to-world, OpenCV axes.
         intrinsics: the depth camera (None for a point cloud view).
         median_depth: median planar depth of the view's points, world units.
+        misses: what its rays that returned nothing mean, world units (None: unknown; see
+            ``no_return`` and ``max_range`` in the module docstring).
+        no_return: the view's ``no_return``.
     """
 
     file: Path
@@ -81,6 +100,8 @@ class Capture:
     pose: np.ndarray
     intrinsics: Intrinsics | None
     median_depth: float
+    misses: Misses | None = None
+    no_return: str = NO_RETURN[0]
 
 
 def check_rigid(pose: object, where: str) -> np.ndarray:
@@ -213,12 +234,9 @@ def read_captures(folder: str | os.PathLike) -> tuple[list[Capture], dict | None
         raise CaptureError(f"{index}: cannot read JSON ({err})") from None
     if not isinstance(spec, dict) or not isinstance(spec.get("views"), list) or not spec["views"]:
         raise CaptureError(f"{index}: must be an object with a non-empty list 'views'")
-    unknown = sorted(set(spec) - {"axes", "intrinsics", "depth_scale", "object", "views"})
+    unknown = sorted(set(spec) - set(FOLDER_KEYS))
     if unknown:
-        raise CaptureError(
-            f"{index}: unknown keys {unknown}; allowed: axes, intrinsics, depth_scale, object, "
-            "views"
-        )
+        raise CaptureError(f"{index}: unknown keys {unknown}; allowed: {', '.join(FOLDER_KEYS)}")
     axes = spec.get("axes", "opencv")
     if axes not in AXES:
         raise CaptureError(f"{index}: axes={axes!r}; allowed: {', '.join(AXES)}")
@@ -245,13 +263,12 @@ def _read_view(folder: Path, i: int, view: object, spec: dict, axes: str) -> Cap
     where = f"{folder / INDEX}: views[{i}]"
     if not isinstance(view, dict) or "file" not in view or "pose" not in view:
         raise CaptureError(f"{where}: each view needs 'file' and 'pose'")
-    unknown = sorted(set(view) - {"file", "pose", "intrinsics", "depth_scale"})
+    unknown = sorted(set(view) - set(VIEW_KEYS))
     if unknown:
-        raise CaptureError(
-            f"{where}: unknown keys {unknown}; allowed: file, pose, intrinsics, depth_scale"
-        )
+        raise CaptureError(f"{where}: unknown keys {unknown}; allowed: {', '.join(VIEW_KEYS)}")
     path = folder / str(view["file"])
     where = f"{path}"
+    no_return, max_range = _sensor(view, spec, where)
     pose = check_rigid(view["pose"], where)
     if axes == "blender":
         pose = opencv_to_blender(pose)  # the same axis flip turns a Blender pose into OpenCV's
@@ -279,22 +296,46 @@ def _read_view(folder: Path, i: int, view: object, spec: dict, axes: str) -> Cap
                 f"{where}: depth is {depth.shape[1]} x {depth.shape[0]}, the intrinsics say "
                 f"{intrinsics.width} x {intrinsics.height}"
             )
+        measured = valid_depth(depth)
+        beyond = measured & (depth > max_range) if max_range is not None else None
+        if beyond is not None:
+            depth = np.where(beyond, np.inf, depth)
         points = backproject(depth, intrinsics, pose)
         if len(points) == 0:
-            raise CaptureError(f"{where}: empty view: no pixel holds a depth")
+            raise CaptureError(
+                f"{where}: empty view: no pixel holds a depth"
+                + (f" within max_range={max_range}" if max_range is not None else "")
+            )
+        mask = ~measured if no_return == "free" else np.zeros(depth.shape, dtype=bool)
+        if beyond is not None:
+            mask |= beyond
+        declared = no_return == "free" or bool(mask.any())
+        misses = Misses(mask, max_range, intrinsics) if declared else None
     else:
         points = _read_cloud(path, where)
+        if max_range is not None:
+            _, z = project(points, Intrinsics(), pose)
+            points = points[z <= max_range]
+            if len(points) == 0:
+                raise CaptureError(f"{where}: empty view: no point within max_range={max_range}")
+        misses = Misses(None, max_range) if no_return == "free" else None
     _, z = project(points, intrinsics or Intrinsics(), pose)
-    return Capture(path, points, pose, intrinsics, float(np.median(z)))
+    return Capture(path, points, pose, intrinsics, float(np.median(z)), misses, no_return)
 
 
-def estimate_object(captures: list[Capture]) -> tuple[np.ndarray, float]:
-    """The object's centre and radius from its captured points, as the dataset normalises a
-    mesh: the centre of the bounding box and the farthest point's distance (a lower bound of
-    the true radius: the captures saw part of the object)."""
-    points = np.concatenate([c.points for c in captures])
-    center = 0.5 * (points.min(axis=0) + points.max(axis=0))
-    return center, float(np.linalg.norm(points - center, axis=1).max())
+def _sensor(view: dict, spec: dict, where: str) -> tuple[str, float | None]:
+    """A view's ``no_return`` and ``max_range`` (its own, else the folder's), checked."""
+    no_return = view.get("no_return", spec.get("no_return", NO_RETURN[0]))
+    if no_return not in NO_RETURN:
+        raise CaptureError(f"{where}: no_return={no_return!r}; allowed: {', '.join(NO_RETURN)}")
+    max_range = view.get("max_range", spec.get("max_range"))
+    if max_range is not None and not (
+        isinstance(max_range, int | float) and not isinstance(max_range, bool) and max_range > 0
+    ):
+        raise CaptureError(
+            f"{where}: max_range={max_range!r}; must be a positive distance (world units) or null"
+        )
+    return no_return, None if max_range is None else float(max_range)
 
 
 def check_views_see(
@@ -339,8 +380,10 @@ def write_captures(
     depths: np.ndarray,
     poses: np.ndarray,
     intrinsics: Intrinsics,
-    center: np.ndarray,
-    radius: float,
+    center: np.ndarray | None,
+    radius: float | None,
+    no_return: str | None = None,
+    max_range: float | None = None,
 ) -> None:
     """Write depth views as a capture folder (``view_NN.npy`` float32 and ``views.json``).
 
@@ -348,11 +391,17 @@ def write_captures(
 
     Args:
         folder: the folder to make; must not exist, or be empty.
-        depths: (V, H, W) planar depth, world units, inf for background.
+        depths: (V, H, W) planar depth, world units, inf (or 0) where nothing was measured.
         poses: (V, 4, 4) camera-to-world, OpenCV axes, world units.
         intrinsics: the camera.
-        center, radius: the object's sphere, world units (``object`` of ``views.json``).
+        center, radius: the object's sphere, world units (``object`` of ``views.json``); None
+            leaves it out (the planner estimates it).
+        no_return: ``views.json``'s ``no_return`` (:data:`NO_RETURN`; ``free`` for rendered
+            views, whose background is empty); None leaves it out (unknown).
+        max_range: ``views.json``'s ``max_range``; None leaves it out.
     """
+    if no_return is not None and no_return not in NO_RETURN:
+        raise ValueError(f"no_return={no_return!r}; allowed: {', '.join(NO_RETURN)}")
     folder = Path(folder)
     if folder.exists() and any(folder.iterdir()):
         raise CaptureError(f"{folder}: exists and is not empty; captures go to a new folder")
@@ -364,12 +413,14 @@ def write_captures(
             name = f"view_{i:02d}.npy"
             np.save(tmp / name, np.asarray(depth, dtype=np.float32))
             views.append({"file": name, "pose": np.asarray(pose).tolist()})
-        spec = {
-            "axes": "opencv",
-            "intrinsics": intrinsics.as_dict(),
-            "object": {"center": np.asarray(center).tolist(), "radius": float(radius)},
-            "views": views,
-        }
+        spec: dict = {"axes": "opencv", "intrinsics": intrinsics.as_dict()}
+        if center is not None and radius is not None:
+            spec["object"] = {"center": np.asarray(center).tolist(), "radius": float(radius)}
+        if no_return is not None:
+            spec["no_return"] = no_return
+        if max_range is not None:
+            spec["max_range"] = float(max_range)
+        spec["views"] = views
         (tmp / INDEX).write_text(json.dumps(spec, indent=1))
         if folder.exists():
             folder.rmdir()

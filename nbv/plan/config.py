@@ -20,6 +20,8 @@ from nbv.config.settings import Entry, check_ranges, setting
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.geometry.viewspace_generators import ViewspaceSpec
+from nbv.plan.candidates import CandidateSettings
+from nbv.plan.object_estimate import EstimateSettings
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import EPISODE_VIEWS
 from nbv.policies.registry import IG, METHODS, NETWORK_INPUTS
@@ -72,24 +74,55 @@ class ViewspaceSettings(ViewspaceSpec):
 
 @dataclass(frozen=True)
 class ObjectSettings:
-    """``object:``, the object's sphere in world units.
+    """``object:``, the object's sphere in world units, or a region of interest that holds it.
 
-    Null keeps the input's: the mesh's (bounding-box centre, farthest vertex), else the captures'
-    ``views.json`` ``object``, else estimated from the captured points (the bounding box of what
-    was seen: give them when you know them).
+    Null keeps the input's: the mesh's (bounding-box centre, farthest vertex), else the region
+    ``box_min`` .. ``box_max`` (its centre, half its diagonal), else the captures' ``views.json``
+    ``object``, else estimated from the captured points (one object on a support, found among
+    the table, walls and stray points: :mod:`nbv.plan.object_estimate`, with ``estimate``).
+    A sphere region of interest is ``center`` and ``radius``.
 
     Attributes:
         center: ``[x, y, z]``, or null.
         radius: a positive distance, or null.
+        box_min: ``[x, y, z]``, with ``box_max``: a box region of interest (clutter such as a
+            shelf bin's contents), or null.
+        box_max: the box's other corner.
+        estimate: how the object is found without them
+            (:class:`~nbv.plan.object_estimate.EstimateSettings`).
     """
 
     center: tuple[float, float, float] | None = setting(
         None, check=lambda c: c is None or len(c) == 3, allowed="[x, y, z] or null"
     )
     radius: float | None = setting(None, check=_null_or_positive, allowed=_DISTANCE)
+    box_min: tuple[float, float, float] | None = setting(
+        None, check=lambda c: c is None or len(c) == 3, allowed="[x, y, z] or null"
+    )
+    box_max: tuple[float, float, float] | None = setting(
+        None, check=lambda c: c is None or len(c) == 3, allowed="[x, y, z] or null"
+    )
+    estimate: EstimateSettings = setting(factory=EstimateSettings)
 
     def __post_init__(self) -> None:
         check_ranges(self)
+        if (self.box_min is None) != (self.box_max is None):
+            raise ConfigError("object.box_min and object.box_max: give both or neither")
+        box = (self.box_min, self.box_max)
+        if self.box_min is not None and not all(a < b for a, b in zip(*box, strict=True)):
+            raise ConfigError(
+                f"object.box_min={list(self.box_min)} must be below object.box_max="
+                f"{list(self.box_max)} on every axis"
+            )
+
+    @property
+    def box_sphere(self) -> tuple[tuple[float, float, float], float] | None:
+        """The box region's ``(centre, radius)`` (half its diagonal), or None without one."""
+        if self.box_min is None or self.box_max is None:
+            return None
+        lo, hi = self.box_min, self.box_max
+        center = tuple(0.5 * (a + b) for a, b in zip(lo, hi, strict=True))
+        return center, 0.5 * sum((b - a) ** 2 for a, b in zip(lo, hi, strict=True)) ** 0.5
 
 
 @dataclass(frozen=True)
@@ -105,7 +138,9 @@ class PlanSettings:
         checkpoint: the weights of a network method; null = ``paths.checkpoints.<method>``, and
             when that file does not exist the weights the package ships.
         viewspace: the candidate views (:class:`ViewspaceSettings`).
-        object: the object's sphere (:class:`ObjectSettings`).
+        object: the object's sphere or region of interest (:class:`ObjectSettings`).
+        candidates: where the robot's camera may go; the candidates it cannot reach are dropped
+            and counted (:class:`~nbv.plan.candidates.CandidateSettings`; captures input).
         start_view: mesh input: the episode's first view (an index of the viewspace).
         n_views: views of an episode or a plan, the captured ones included (>= 2;
             ``protocol.n_views``).
@@ -138,6 +173,7 @@ class PlanSettings:
     checkpoint: Path | None = None
     viewspace: ViewspaceSettings = setting(factory=ViewspaceSettings)
     object: ObjectSettings = setting(factory=ObjectSettings)
+    candidates: CandidateSettings = setting(factory=CandidateSettings)
     start_view: int = setting(0, check=lambda v: v >= 0, allowed="an integer >= 0")
     n_views: int = setting(EPISODE_VIEWS, check=lambda v: v >= 2, allowed="an integer >= 2")
     camera: Intrinsics = setting(factory=Intrinsics, config=CameraConfig, convert=_camera)
@@ -168,6 +204,11 @@ class PlanSettings:
         check_ranges(self)
         n_candidates = len(self.viewspace.directions())  # reads a viewspace file: refused now
         check_views("start_view", [self.start_view], self.viewspace.kind, n_candidates)
+        if self.mesh is not None and self.candidates.active:
+            raise ConfigError(
+                "candidates.*: the candidate limits apply to captures=<folder>; a mesh's episode "
+                "plays the whole viewspace (give a viewspace file of the reachable views)"
+            )
         if self.save_captures and self.mesh is None:
             raise ConfigError("save_captures needs mesh=<mesh file>: it saves simulated views")
         if self.save_captures > self.n_views:

@@ -112,12 +112,17 @@ def candidate_poses(
 
 def object_frame(settings: PlanSettings, center: np.ndarray, radius: float) -> ObjectFrame:
     """The object's frame: the ``object`` settings' centre and radius where given, else the
-    input's ``center`` (3,) and ``radius`` (world units: the mesh's, the captures' or estimated).
+    region of interest's (``object.box_min`` / ``box_max``: its centre and half its diagonal),
+    else the input's ``center`` (3,) and ``radius`` (world units: the mesh's, the captures' or
+    estimated).
 
     Raises:
         ValueError: the cameras (``viewspace.radius``) would sit inside the object's sphere.
     """
     given = settings.object
+    box = given.box_sphere
+    if box is not None:
+        center, radius = box
     c = given.center if given.center is not None else center
     r = given.radius if given.radius is not None else radius
     frame = ObjectFrame(np.asarray(c, dtype=np.float64), float(r), settings.viewspace.up)

@@ -5,7 +5,8 @@ The mesh is placed as the dataset normalises it (bounding-box centre, farthest v
 and turned into the dataset's view record (:func:`nbv.dataset.views.view_data`), and
 :func:`nbv.policies.episode.run_episode` plays the episode from ``start_view``; coverage by view
 is measured against ``n_gt`` points sampled on the mesh. :func:`save_episode_captures` writes the
-first views as a capture folder (:mod:`nbv.plan.captures`), in the mesh's units.
+first views as a capture folder (:mod:`nbv.plan.captures`), in the mesh's units, declaring
+``no_return: free`` (a rendered background is empty space).
 """
 
 from __future__ import annotations
@@ -86,6 +87,7 @@ def save_episode_captures(settings: PlanSettings, result: PlanResult, depth: np.
     folder = settings.captures_out or settings.out_dir / "captures"
     views = (result.visited + result.chosen)[: settings.save_captures]
     poses = result.frame.poses_to_world(result.model.views[VIEWSPACE].poses[views])
+    # Rendered views: their background is empty space, and the folder says so.
     write_captures(folder, depth[views] / result.frame.scale, poses, settings.camera,
-                   result.frame.center, result.frame.radius)  # fmt: skip
+                   result.frame.center, result.frame.radius, no_return="free")  # fmt: skip
     return folder

@@ -10,8 +10,11 @@
   ``candidates``: the same for every candidate;
 * ``predicted_gains`` (and ``gain_unit``) of the chosen views, when the planner predicts any;
   ``coverage`` by view against the mesh (mesh input);
-* ``object`` (centre, radius, up, whether estimated), ``camera`` (the planner's), ``timings``
-  (seconds of each decision and of the policy's stages), ``notes`` and ``settings``.
+* ``object`` (centre, radius, up, whether estimated; captures input: ``source``, and the
+  object ``estimate`` with its inputs and counts when one ran), ``candidate_limits`` (captures
+  input, when candidates were limited: how many were dropped and why, and the viewspace index of
+  each kept candidate), ``camera`` (the planner's), ``timings`` (seconds of each decision and of
+  the policy's stages), ``notes`` and ``settings``.
 """
 
 from __future__ import annotations
@@ -75,6 +78,9 @@ def settings_record(settings: PlanSettings) -> dict:
         "distance": vs.radius,
         "center": obj.center,
         "radius": obj.radius,
+        "box_min": obj.box_min,
+        "box_max": obj.box_max,
+        "estimate": obj.estimate,
     }
     order = [*RECORD_ORDER, *(key for key in flat if key not in RECORD_ORDER)]
     return {key: _jsonable(flat[key]) for key in order}
@@ -102,6 +108,7 @@ def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
             "up": result.frame.up,
             "estimated": result.frame_estimated,
         },
+        "candidate_limits": result.candidate_limits,
         "camera_distance": float(np.linalg.norm(world[0, :3, 3] - result.frame.center)),
         "camera": _jsonable(result.camera),
         "timings": {"decisions": result.decisions, "stages": result.stages},
@@ -109,6 +116,9 @@ def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
         "candidates": [_pose_entry(v, world[v]) for v in range(result.n_candidates)],
         "settings": settings_record(settings),
     }  # fmt: skip
+    if settings.captures is not None:
+        record["object"]["source"] = result.object_source
+        record["object"]["estimate"] = result.estimate
     return record
 
 

@@ -37,6 +37,16 @@ class PlanResult:
         notes: what the policy or the input had to work around.
         frame_estimated: the object's centre and radius were estimated from the captures.
         camera: the planner's camera (its view simulation, ``ig``'s rays).
+        object_source: captures input: where the object's sphere came from: ``object
+            settings``, ``region of interest`` (``object.box_*``), ``views.json``, or
+            ``estimated``.
+        estimate: captures input: the object estimate
+            (:meth:`nbv.plan.object_estimate.ObjectEstimate.record`), when one ran.
+        candidate_limits: captures input: the candidates dropped
+            (:func:`nbv.plan.candidates.limit_candidates`): ``dropped`` (how many),
+            ``by_reason``, ``dropped_views`` and ``kept_views`` (viewspace indices; the plan's
+            candidate ``i`` is viewspace view ``kept_views[i]``), ``support`` (the plane used, or
+            None); None when nothing limits them.
     """
 
     frame: ObjectFrame
@@ -53,6 +63,9 @@ class PlanResult:
     notes: list[str] = field(default_factory=list)
     frame_estimated: bool = False
     camera: Intrinsics | None = None
+    object_source: str = ""
+    estimate: dict | None = None
+    candidate_limits: dict | None = None
 
     @property
     def cloud(self) -> np.ndarray:

@@ -11,6 +11,15 @@ centre, its hit points and the directions of its rays that hit nothing:
 * voxels never crossed are *unknown*, except those outside the sphere the object fits in,
   which start free.
 
+Where the rays that hit nothing come from depends on who took the view. A rendered view's
+background is empty space (the renderer knows): :func:`background_directions` takes them from the
+blocks of the image that no stored point falls in, the dataset's rule. A depth sensor's pixel
+without a measurement is *unknown* (dark, shiny or grazing surfaces, often on the object itself),
+so a sensed view carves only where its user declared that no return means free space, and only
+up to the sensor's range: :class:`Misses` holds that declaration, :func:`mask_directions` takes
+the rays from the full image's mask (subsampling the points never creates a miss) and
+:meth:`OccupancyMap.sensed_voxels` traces them.
+
 Log-odds updates are clamped, and a voxel is occupied at log-odds >= 0, with OctoMap's default
 probabilities (:class:`OccupancySettings`). The test suite checks the map against OctoMap itself
 (the ``octomap-python`` binding) on a scene of many views.
@@ -125,6 +134,65 @@ def background_directions(
     return world / np.linalg.norm(world, axis=1, keepdims=True)
 
 
+def mask_directions(
+    mask: np.ndarray, pose: np.ndarray, intrinsics: Intrinsics, block: int
+) -> np.ndarray:
+    """Camera rays of the ``block x block`` pixel blocks every pixel of which is a miss.
+
+    Args:
+        mask: (H, W) bool, the pixels whose ray is known to hit nothing (within the range).
+        pose: (4, 4) camera-to-world pose.
+        intrinsics: the camera.
+        block: block edge in pixels.
+
+    Returns:
+        (M, 3) unit world directions of the rays through the blocks' centre pixels (the same
+        pixels, and the same arithmetic, as :func:`background_directions`).
+    """
+    if block < 1:
+        raise ValueError(f"block={block!r}: must be an integer >= 1 (pixels)")
+    mask = np.asarray(mask, dtype=bool)
+    if mask.shape != (intrinsics.height, intrinsics.width):
+        raise ValueError(f"mask is {mask.shape}, the camera {intrinsics.height, intrinsics.width}")
+    rows, cols = -(-intrinsics.height // block), -(-intrinsics.width // block)
+    padded = np.ones((rows * block, cols * block), dtype=bool)
+    padded[: mask.shape[0], : mask.shape[1]] = mask
+    # A block is a miss only when all of it is: one measured (or unknown) pixel keeps it out.
+    whole = padded.reshape(rows, block, cols, block).all(axis=(1, 3))
+    rr, cc = np.nonzero(whole)
+    centre_v = np.minimum(rr * block + block // 2, intrinsics.height - 1)
+    centre_u = np.minimum(cc * block + block // 2, intrinsics.width - 1)
+    cam = rays_through(intrinsics, centre_u, centre_v)
+    world = cam @ np.asarray(pose, dtype=np.float64)[:3, :3].T
+    return world / np.linalg.norm(world, axis=1, keepdims=True)
+
+
+@dataclass(frozen=True)
+class Misses:
+    """What the rays of a sensed view that return nothing mean (a declaration of its user).
+
+    Attributes:
+        mask: (H, W) bool, the pixels known to hit nothing within ``reach`` (no return where no
+            return is declared free, and measurements beyond the range); None for a point cloud
+            view declared free: its blocks without a point are misses
+            (:func:`background_directions`).
+        reach: planar depth (map units) up to which a miss is free; None: through the region.
+        intrinsics: the camera of ``mask`` (None: the map's user's camera).
+    """
+
+    mask: np.ndarray | None
+    reach: float | None = None
+    intrinsics: Intrinsics | None = None
+
+    def digest(self) -> bytes:
+        """Bytes that identify the declaration (a key of traced views)."""
+        head = np.float64(np.nan if self.reach is None else self.reach).tobytes()
+        head += repr(self.intrinsics).encode()
+        if self.mask is None:
+            return head
+        return head + np.packbits(self.mask).tobytes() + np.int64(self.mask.shape).tobytes()
+
+
 @functools.lru_cache(maxsize=4)
 def _prior(settings: OccupancySettings) -> np.ndarray:
     """(n^3,) log-odds of an empty map: unknown (NaN), but free outside ``object_radius``.
@@ -175,11 +243,20 @@ class OccupancyMap:
 
         Args: as :meth:`insert_view`.
         """
+        origin = np.asarray(origin, dtype=np.float64).reshape(3)
+        misses = np.zeros((0, 3)) if miss_directions is None else np.asarray(miss_directions, float)
+        return self.segment_voxels(origin, hits, self.miss_ends(origin, misses))
+
+    def segment_voxels(
+        self, origin: np.ndarray, hits: np.ndarray, free_ends: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`view_voxels` of rays from ``origin`` (3,) to ``hits`` (N, 3), and of free
+        segments from ``origin`` to ``free_ends`` (M, 3) (every voxel they cross, their end's
+        included, is free)."""
         s = self.settings
         origin = np.asarray(origin, dtype=np.float64).reshape(3)
         hits = np.asarray(hits, dtype=np.float64).reshape(-1, 3)
-        misses = np.zeros((0, 3)) if miss_directions is None else np.asarray(miss_directions, float)
-        far = self.miss_ends(origin, misses)
+        far = np.asarray(free_ends, dtype=np.float64).reshape(-1, 3)
         before_hits = traverse(np.broadcast_to(origin, hits.shape), hits, s.n, s.bound, False)
         carved = traverse(np.broadcast_to(origin, far.shape), far, s.n, s.bound)
         # Each voxel once a view; a voxel both crossed and hit takes the hit (as OctoMap).
@@ -199,6 +276,37 @@ class OccupancyMap:
         (:func:`background_directions` of ``block`` pixels) that hit nothing."""
         misses = background_directions(points, pose, intrinsics, block)
         return self.view_voxels(np.asarray(pose)[:3, 3], points, misses)
+
+    def sensed_voxels(
+        self,
+        points: np.ndarray,
+        pose: np.ndarray,
+        intrinsics: Intrinsics,
+        block: int,
+        misses: Misses | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`view_voxels` of a depth sensor's view: rays from the camera centre of ``pose``
+        (4, 4) to its ``points`` (N, 3), and free space only where ``misses`` declares it (None:
+        nothing the sensor did not measure is free; a mask: its whole blocks, up to the reach;
+        no mask: the blocks without a point, as :meth:`captured_voxels`)."""
+        origin = np.asarray(pose, dtype=np.float64)[:3, 3]
+        if misses is None:
+            return self.segment_voxels(origin, points, np.zeros((0, 3)))
+        camera = misses.intrinsics or intrinsics
+        if misses.mask is None:
+            rays = background_directions(points, pose, camera, block)
+        else:
+            rays = mask_directions(misses.mask, pose, camera, block)
+        if misses.reach is None:
+            return self.segment_voxels(origin, points, self.miss_ends(origin, rays))
+        # The range is a planar depth: scale the unit directions to unit planar depth.
+        camera_z = np.asarray(pose, dtype=np.float64)[:3, 2]
+        rays = rays / np.maximum(rays @ camera_z, 1e-12)[:, None]
+        # Free up to the range, or to beyond the region's far side when that comes first.
+        far = self.miss_ends(origin, rays)
+        limit = origin + rays * misses.reach
+        shorter = np.linalg.norm(limit - origin, axis=1) < np.linalg.norm(far - origin, axis=1)
+        return self.segment_voxels(origin, points, np.where(shorter[:, None], limit, far))
 
     def apply_view(self, voxels: tuple[np.ndarray, np.ndarray]) -> None:
         """Update the map by a view's :meth:`view_voxels`: misses, then hits."""

@@ -4,6 +4,11 @@ After every captured view the map (:mod:`nbv.planning.occupancy`) takes the view
 unvisited candidate is scored by casting rays through the map
 (:mod:`nbv.planning.information_gain`); the best one is taken. The policy reads the captured
 views' points and poses and the candidates' poses, nothing else.
+
+A dataset's view (a rendered one) carves free space along the image blocks no stored point falls
+in: its background is empty. A depth sensor's views come as a :class:`SensedViews` record, which
+says per view what its missing pixels mean (:class:`nbv.planning.occupancy.Misses`); by default
+nothing, and the map leaves them unknown.
 """
 
 from __future__ import annotations
@@ -14,14 +19,38 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from nbv.dataset.records import ViewData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.planning.information_gain import candidate_voxels, view_gains
-from nbv.planning.occupancy import OccupancyMap
+from nbv.planning.occupancy import Misses, OccupancyMap
 from nbv.planning.settings import VolumetricSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
+
+
+@dataclass
+class SensedViews(ViewData):
+    """A view record of a depth sensor's captures (the planner's input, not a dataset's).
+
+    Attributes:
+        misses: per view, what its rays that return nothing mean: None (the default of every
+            view not listed) leaves what the sensor did not measure unknown; a
+            :class:`~nbv.planning.occupancy.Misses` carves free space where its user declared it.
+    """
+
+    misses: list[Misses | None] = field(default_factory=list)
+
+    @classmethod
+    def of(cls, view: ViewData, misses: list[Misses | None]) -> SensedViews:
+        """The record ``view`` with each view's ``misses``."""
+        fields = {name: getattr(view, name) for name in ViewData.__dataclass_fields__}
+        return cls(**fields, misses=list(misses))
+
+    def misses_of(self, v: int) -> Misses | None:
+        """What view ``v``'s missing pixels mean (None: unknown)."""
+        return self.misses[v] if v < len(self.misses) else None
 
 
 @dataclass
@@ -68,14 +97,23 @@ class InformationGainPolicy:
         points, pose = view.view_points(v), view.poses[v]
         digest = hashlib.blake2b(points.tobytes(), digest_size=16)
         digest.update(np.asarray(pose).tobytes())
+        sensed = isinstance(view, SensedViews)
+        misses = view.misses_of(v) if sensed else None
+        if sensed:
+            digest.update(b"sensed" + (b"" if misses is None else misses.digest()))
         key = (digest.hexdigest(), self.intrinsics, self.settings.block, self.settings.occupancy())
         kept = self.traced.setdefault("views", {})
         if key not in kept:
             if len(kept) >= 4 * 66:  # about two models' views of both viewspaces
                 kept.clear()
-            kept[key] = self.occupancy.captured_voxels(
-                points, pose, self.intrinsics, self.settings.block
-            )
+            if sensed:
+                kept[key] = self.occupancy.sensed_voxels(
+                    points, pose, self.intrinsics, self.settings.block, misses
+                )
+            else:
+                kept[key] = self.occupancy.captured_voxels(
+                    points, pose, self.intrinsics, self.settings.block
+                )
         return kept[key]
 
     def candidate_voxels(self, poses: np.ndarray) -> np.ndarray:
