@@ -21,17 +21,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
-import numpy as np
-
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
 from nbv.dataset.reader import Dataset
-from nbv.dataset.records import ModelData
 from nbv.eval.config import EvalSettings
 from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.metrics import ModelMetrics, fill_metrics
-from nbv.eval.prepare import prepare_meshes, rendered_viewspaces, stored_name
+from nbv.eval.prepare import prepare_meshes, read_model, rendered_viewspaces, stored_name
 from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
 from nbv.planning.gain_scorer import load_scorer
 from nbv.policies.network import NetworkPolicy
@@ -175,30 +172,6 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
         failures += [f for f in ds.failures if f not in failures]
         out.append((DatasetInfo(name, path, keys, failures, sizes=sizes, rendered=rendered), ds))
     return out
-
-
-def read_model(
-    ds: Dataset, rendered: Path | None, key: str, viewspaces: tuple[str, ...]
-) -> ModelData:
-    """One model with the views of ``viewspaces``: from the dataset, and those it lacks from
-    the viewspaces the evaluation rendered (``rendered``), under the names the settings give.
-
-    Raises:
-        EvalDataError: the rendered views' ground truth is not the dataset's (the dataset was
-            made again since they were rendered, under other settings).
-    """
-    own = tuple(vs for vs in viewspaces if vs in ds.viewspaces)
-    model = ds.model(key, viewspaces=own)
-    lacking = [vs for vs in viewspaces if vs not in ds.viewspaces]
-    if lacking:
-        extra = nbv.dataset.open(rendered).model(key, tuple(stored_name(v) for v in lacking))
-        if not np.array_equal(extra.gt_points, model.gt_points):
-            raise EvalDataError(
-                f"{rendered}: model {key!r}: the rendered viewspaces' ground truth is not the "
-                "dataset's; delete that folder to render them again"
-            )
-        model.views.update({vs: extra.views[stored_name(vs)] for vs in lacking})
-    return model
 
 
 def unusable(settings: EvalSettings, networks: dict, sizes: dict[str, int]) -> dict[str, str]:

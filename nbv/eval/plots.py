@@ -203,12 +203,13 @@ def reconstruction_figure(evaluation, path: Path) -> bool:
     """One episode in 3D: the start view's cloud with its hull and the chosen cameras (left),
     the ground truth and what the views captured (right). False when nothing ran."""
     import nbv.dataset
+    from nbv.eval.prepare import read_model
 
     r = _example(evaluation)
     if r is None:
         return False
     info = next(i for i in evaluation.datasets if i.name == r.dataset)
-    model = nbv.dataset.open(info.path).model(r.key, viewspaces=(r.viewspace,))
+    model = read_model(nbv.dataset.open(info.path), info.rendered, r.key, (r.viewspace,))
     view = model.views[r.viewspace]
     cams = view.poses[:, :3, 3]
     start = view.view_points(r.views[0])

@@ -18,9 +18,14 @@ import json
 import logging
 from pathlib import Path
 
+import numpy as np
+
+import nbv.dataset
 from nbv.assets.meshes import MESH_SUFFIXES
 from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer
+from nbv.dataset.reader import Dataset
+from nbv.dataset.records import ModelData
 from nbv.eval.config import PrepareSettings
 from nbv.geometry.scores import COVERAGE_TEST
 from nbv.geometry.viewspace import is_named
@@ -182,3 +187,27 @@ def rendered_viewspaces(
         )
     done.write_text(json.dumps({"identity": ident, "failures": []}, indent=1))
     return out
+
+
+def read_model(
+    ds: Dataset, rendered: Path | None, key: str, viewspaces: tuple[str, ...]
+) -> ModelData:
+    """One model with the views of ``viewspaces``: from the dataset, and those it lacks from
+    the viewspaces the evaluation rendered (``rendered``), under the names the settings give.
+
+    Raises:
+        ValueError: the rendered views' ground truth is not the dataset's (the dataset was
+            made again since they were rendered, under other settings).
+    """
+    own = tuple(vs for vs in viewspaces if vs in ds.viewspaces)
+    model = ds.model(key, viewspaces=own)
+    lacking = [vs for vs in viewspaces if vs not in ds.viewspaces]
+    if lacking:
+        extra = nbv.dataset.open(rendered).model(key, tuple(stored_name(v) for v in lacking))
+        if not np.array_equal(extra.gt_points, model.gt_points):
+            raise ValueError(
+                f"{rendered}: model {key!r}: the rendered viewspaces' ground truth is not the "
+                "dataset's; delete that folder to render them again"
+            )
+        model.views.update({vs: extra.views[stored_name(vs)] for vs in lacking})
+    return model

@@ -45,8 +45,10 @@ from nbv.eval.evaluate import (
     load_networks,
     method_context,
     open_datasets,
+    unusable,
     with_shipped_weights,
 )
+from nbv.eval.prepare import read_model
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.planning.gain_scorer import load_scorer
@@ -148,8 +150,10 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
         raise ValueError(f"methods {refused} have no per-view scores; allowed: {', '.join(RANKED)}")
     settings = with_shipped_weights(settings)
     opened = open_datasets(settings)
-    n_views = len(opened[0][1].viewspaces[settings.viewspaces[0]])
-    networks, skipped = load_networks(settings, n_views)
+    networks, skipped = load_networks(settings, None)
+    skipped.update(
+        unusable(settings, networks, {vs: n for i, _ in opened for vs, n in i.sizes.items()})
+    )
     if skipped:
         raise ValueError("; ".join(f"{m}: {reason}" for m, reason in skipped.items()))
     scorer = load_scorer(settings.scorer_file()) if set(SCORED) & set(settings.methods) else None
@@ -158,7 +162,7 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
         exclude_selection(info, ds, networks)
         ctx = method_context(settings, ds, networks, scorer)
         for key in tqdm(info.keys, desc=f"ranking {info.name}", disable=not settings.progress):
-            model = ds.model(key, settings.viewspaces)
+            model = read_model(ds, info.rendered, key, settings.viewspaces)
             for vs in settings.viewspaces:
                 for start in settings.start_views:
                     for r in score_states(model, vs, start, settings.methods, ctx, seed):
