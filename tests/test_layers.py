@@ -20,6 +20,8 @@ HEAVY = ("h5py", "torch", "open3d", "bpy")
         "nbv.planning.planner",
         "nbv.planning.view_sets",
         "nbv.geometry.raycast",
+        "nbv.geometry.fusion",
+        "nbv.geometry.reconstruction",
         "nbv.policies.episode",
         "nbv.policies.registry",
         "nbv.eval.protocol",
