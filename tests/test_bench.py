@@ -81,3 +81,103 @@ def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy(kind)
     ours = network_episode(policy.decide, views, start=2)
     assert ours == network_episode(plain_decider(net, 64, kind, 2), views, start=2)
     assert len(set(ours)) == 10
+
+
+def test_network_rows_are_well_formed_on_tiny_networks(tmp_path):
+    """Every network row exists with positive times and its floor or slowdown (not its speed)."""
+    from test_policies import save_tiny_checkpoint
+
+    from nbv.bench.network import LOAD_TARGET, network_rows
+
+    rng = np.random.default_rng(0)
+    views = [rng.normal(size=(30, 3)).astype(np.float32) + i for i in range(33)]
+    nets = [("tiny", save_tiny_checkpoint(tmp_path / "p.pt"), 0.13),
+            ("tiny-sph", save_tiny_checkpoint(tmp_path / "s.pt", "signature"), None)]  # fmt: skip
+    rows = network_rows(views, nets, starts=(1, 5, 9), repeat=1)
+    names = [r["name"] for r in rows]
+    assert names == [
+        "tiny 9-view episode (sampling + forwards)",
+        "tiny-sph 9-view episode (sampling + forwards)",
+        "tiny episodes, 3 in lockstep, float32 (per episode)",
+        "tiny-sph episodes, 3 in lockstep, float32 (per episode)",
+        "tiny 9-view episode beside a busy process",
+        "tiny-sph 9-view episode beside a busy process",
+    ]
+    for r in rows:
+        assert r["ours"] > 0 and r["reference"] > 0
+        assert r["ratio"] == pytest.approx(r["reference"] / r["ours"])
+    for r in rows[2:4]:
+        assert 0 < r["floor"] < r["ours"] and "FLOP floor" in r["note"]
+    for r in rows[4:]:
+        assert r["slowdown"] == pytest.approx(r["ours"] / r["reference"])
+        assert r["target"] == pytest.approx(LOAD_TARGET * r["reference"])
+    assert "| tiny episodes, 3 in lockstep" in format_table(rows)
+
+
+def test_lockstep_episodes_equal_one_at_a_time_episodes():
+    from nbv.bench.network import lockstep_episodes, network_episode
+
+    views = [np.full((i + 1, 3), i, dtype=np.float32) for i in range(12)]
+
+    def biggest_cloud_rule(cloud, state):  # depends on the episode's own cloud and state
+        return int(np.flatnonzero(~state)[len(cloud) % int((~state).sum())])
+
+    def many(clouds, states):
+        return [biggest_cloud_rule(c, s) for c, s in zip(clouds, states, strict=True)]
+
+    starts = [0, 4, 11]
+    assert lockstep_episodes(many, views, starts) == [
+        network_episode(biggest_cloud_rule, views, s) for s in starts
+    ]
+
+
+def test_flop_count_equals_torch_flop_counter():
+    import torch
+    from torch.utils.flop_counter import FlopCounterMode
+
+    from nbv.bench.floor import pcnbv_flops
+    from nbv.models.config import PCNBVConfig
+    from nbv.models.inference import for_inference
+    from nbv.models.pcnbv import PCNBV
+
+    torch.manual_seed(0)
+    tiny = PCNBVConfig(n_views=12, k=4, growth=4, dense_layers=2, blocks=2, first_channels=8,
+                       attention_channels=8, conv_channels=(32,), fc_channels=(32,))  # fmt: skip
+    for config, n in ((PCNBVConfig(), 64), (tiny, 40)):
+        net = for_inference(PCNBV(config).eval(), "fp32")
+        with torch.inference_mode(), FlopCounterMode(display=False) as counter:
+            net(torch.randn(1, n, 3), torch.zeros(1, config.n_views))
+        assert pcnbv_flops(config, n) == counter.get_total_flops()
+    # The issue's figure: a 512-point PCNBV forward is about 2.6 GFLOP.
+    assert pcnbv_flops(PCNBVConfig(), 512) == 2_608_023_040
+
+
+def test_peak_flops_formula():
+    from nbv.bench.floor import peak_flops
+
+    avx2 = "vendor_id\t: AuthenticAMD\ncpu MHz\t\t: 2596.130\nflags\t\t: sse avx2 fma avx512f\n"
+    peak = peak_flops(avx2, cores=2)  # the clock of cpufreq, when readable, wins over cpu MHz
+    assert peak.lanes == 8 and peak.cores == 2
+    assert peak.flops == pytest.approx(2 * peak.ghz * 1e9 * 8 * 4)
+    peak = peak_flops(avx2, max_khz=3_000_000, cores=2)
+    assert peak.flops == pytest.approx(192e9) and "192 GFLOP/s" in peak.formula()
+    intel = "vendor_id\t: GenuineIntel\nflags\t\t: sse avx2 fma avx512f\n"
+    assert peak_flops(intel, max_khz=2_000_000, cores=1).flops == pytest.approx(128e9)
+    assert peak_flops("flags\t: sse sse2\n", max_khz=1_000_000, cores=1).lanes == 4
+    with pytest.raises(ValueError, match="no CPU flags"):
+        peak_flops("model name\t: x\n", max_khz=1, cores=1)
+
+
+def test_configure_openmp_sets_a_passive_wait_before_torch_and_keeps_the_users():
+    import subprocess
+    import sys
+
+    code = ("import os, sys; from nbv.models.threads import configure_openmp; "
+            "first = configure_openmp(); import torch; "
+            "print(first, configure_openmp(), os.environ['OMP_WAIT_POLICY'])")  # fmt: skip
+    env = {k: v for k, v in __import__("os").environ.items() if k != "OMP_WAIT_POLICY"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.stdout.split() == ["True", "False", "PASSIVE"], out.stderr
+    env["OMP_WAIT_POLICY"] = "ACTIVE"
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
+    assert out.stdout.split() == ["True", "False", "ACTIVE"], out.stderr

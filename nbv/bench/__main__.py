@@ -9,8 +9,14 @@ stderr and exit status 2, and leaves no run folder behind (:mod:`nbv.config.cli`
 import json
 import logging
 
-from nbv.bench.config import ENTRY, BenchSettings
-from nbv.config.cli import command
+from nbv.models.threads import configure_openmp
+
+# Torch's OpenMP threads sleep when idle, so a busy machine slows the network rows ~1.1-1.9x,
+# not 4-11x (nbv.models.threads); set before anything imports torch.
+configure_openmp()
+
+from nbv.bench.config import ENTRY, BenchSettings  # noqa: E402
+from nbv.config.cli import command  # noqa: E402
 
 PROG = "nbv.bench"
 # Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.

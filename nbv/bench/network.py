@@ -15,7 +15,11 @@ the reference on trained weights too.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -114,3 +118,150 @@ def episode_seconds(
             network_episode(decide, views, start)  # warm-up: first calls allocate, pick kernels
             out[name] = best_time(lambda d=decide: network_episode(d, views, start), repeat, np.inf)
     return out
+
+
+def lockstep_episodes(
+    decide_many: Callable[[list[np.ndarray], list[np.ndarray]], list[int]],
+    views: Sequence[np.ndarray],
+    starts: Sequence[int],
+    n_views: int = EPISODE_VIEWS,
+) -> list[list[int]]:
+    """Episodes from every view of ``starts`` stepped together, as the evaluator steps a model's
+    episodes: each step one ``decide_many(clouds, view_states) -> views`` for all of them.
+    Returns each episode's captured views in order."""
+    orders = [[int(s)] for s in starts]
+    states = [np.zeros(len(views), dtype=bool) for _ in starts]
+    for state, start in zip(states, starts, strict=True):
+        state[start] = True
+    for _ in range(n_views - 1):
+        clouds = [np.concatenate([views[i] for i in order]) for order in orders]
+        for order, state, v in zip(orders, states, decide_many(clouds, states), strict=True):
+            if state[v]:
+                raise ValueError(f"the policy chose the visited view {v}")
+            state[v] = True
+            order.append(int(v))
+    return orders
+
+
+def _policy(checkpoint: Path, n_views: int, precision: str):
+    from nbv.policies.network import NetworkPolicy
+
+    return NetworkPolicy.from_checkpoint(checkpoint, n_views, precision=precision)
+
+
+def batched_seconds(
+    views: Sequence[np.ndarray], checkpoint: Path, starts: Sequence[int], repeat: int = 3
+) -> dict[str, float]:
+    """Seconds an episode in float32, for the episodes of ``starts`` in lockstep with one batched
+    forward a step (``"batched"``, the whole over the number of episodes) and one at a time
+    (``"single"``, their mean), best of ``repeat``; ``"forward_flops"``: FLOPs of one forward
+    pass of one sample (:func:`nbv.bench.floor.pcnbv_flops`).
+
+    Raises:
+        AssertionError: the two ways chose different views.
+    """
+    from nbv.bench.floor import pcnbv_flops
+
+    policy = _policy(checkpoint, len(views), "fp32")
+    n = len(starts)
+
+    def batched() -> list[list[int]]:
+        return lockstep_episodes(policy.decide_many, views, starts)
+
+    def single() -> list[list[int]]:
+        return [network_episode(policy.decide, views, s) for s in starts]
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        if batched() != single():  # also the warm-up
+            raise AssertionError("batched and one-at-a-time episodes chose different views")
+        out = {name: best_time(fn, repeat, np.inf) / n for name, fn in
+               (("batched", batched), ("single", single))}  # fmt: skip
+    points = 4 * (policy.lmax + 1) ** 2 if policy.input == "signature" else policy.n_points
+    out["forward_flops"] = float(pcnbv_flops(policy.model.config, points))
+    return out
+
+
+@contextmanager
+def busy_process() -> Iterator[subprocess.Popen]:
+    """A CPU-bound process (a Python busy loop) for the block's duration, killed after: what
+    another job on the machine does to the cores."""
+    proc = subprocess.Popen([sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.2)  # let it start and take its core
+        yield proc
+    finally:
+        proc.kill()
+        proc.wait()
+
+
+def load_seconds(
+    views: Sequence[np.ndarray], checkpoint: Path, start: int = 1, repeat: int = 3
+) -> dict[str, float]:
+    """Best seconds of a one-at-a-time episode of the project's path (precision ``auto``) on the
+    quiet machine (``"quiet"``) and beside :func:`busy_process` (``"busy"``), ``repeat`` pairs
+    interleaved so that both see the same machine."""
+    policy = _policy(checkpoint, len(views), "auto")
+
+    def episode() -> list[int]:
+        return network_episode(policy.decide, views, start)
+
+    quiet, busy = [], []
+    with threadpool_limits(limits=1, user_api="blas"):
+        episode()  # warm-up
+        for _ in range(repeat):
+            quiet.append(best_time(episode, 1, np.inf))
+            with busy_process():
+                busy.append(best_time(episode, 1, np.inf))
+    return {"quiet": min(quiet), "busy": min(busy)}
+
+
+#: The slowdown beside a busy process the load rows aim at (issue 31).
+LOAD_TARGET = 1.5
+#: The start views of the lockstep rows: the evaluation protocol's.
+LOCKSTEP_STARTS = (1, 3, 7, 10, 15, 24, 27, 30)
+
+
+def network_rows(
+    views: Sequence[np.ndarray],
+    episodes: Sequence[tuple[str, Path, float | None]],
+    starts: Sequence[int] = LOCKSTEP_STARTS,
+    repeat: int = 3,
+) -> list[dict]:
+    """The network rows of ``make bench`` for each ``(name, checkpoint, target seconds)`` of
+    ``episodes``: the 9-view episode against the plain float32 network, the episodes of
+    ``starts`` batched against one at a time (float32) beside the FLOP floor of this machine
+    (:mod:`nbv.bench.floor`), and the episode beside a busy process against the quiet machine.
+    Rows: dicts of name, ours, reference, ratio, target (seconds), note; the batched rows also
+    ``floor`` (seconds an episode), the load rows ``slowdown``."""
+    from nbv.bench.floor import peak_flops
+
+    peak = peak_flops()
+    rows = []
+    for name, weights, target in episodes:
+        t = episode_seconds(views, weights, repeat=max(repeat, 1))
+        rows.append(dict(
+            name=f"{name} 9-view episode (sampling + forwards)", ours=t["ours"],
+            reference=t["reference"], ratio=t["reference"] / t["ours"], target=target,
+            note=f"inference copy vs plain float32 network, weights {weights.name}",
+        ))  # fmt: skip
+    for name, weights, target in episodes:
+        t = batched_seconds(views, weights, starts, repeat)
+        floor = (EPISODE_VIEWS - 1) * t["forward_flops"] / peak.flops
+        rows.append(dict(
+            name=f"{name} episodes, {len(starts)} in lockstep, float32 (per episode)",
+            ours=t["batched"], reference=t["single"], ratio=t["single"] / t["batched"],
+            target=target, floor=floor,
+            note=f"one batched forward a step vs one at a time; FLOP floor {floor * 1e3:.0f} ms "
+            f"= {EPISODE_VIEWS - 1} x {t['forward_flops'] / 1e9:.3g} GFLOP / ({peak.formula()})",
+        ))  # fmt: skip
+    for name, weights, _ in episodes:
+        t = load_seconds(views, weights, repeat=repeat)
+        slowdown = t["busy"] / t["quiet"]
+        rows.append(dict(
+            name=f"{name} 9-view episode beside a busy process",
+            ours=t["busy"], reference=t["quiet"], ratio=t["quiet"] / t["busy"],
+            target=LOAD_TARGET * t["quiet"], slowdown=slowdown,
+            note=f"beside a CPU-bound process vs the quiet machine (reference), interleaved: "
+            f"{slowdown:.2f}x slower; target {LOAD_TARGET}x the quiet time",
+        ))  # fmt: skip
+    return rows

@@ -25,6 +25,7 @@ from nbv.assets.weights import SHIPPED_SCORER
 from nbv.bench.plan import capture_rows
 from nbv.bench.timing import best_time
 from nbv.bench.volumetric import decision_row
+from nbv.bench.warm import warm_rows
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.clouds import farthest_points
 from nbv.geometry.hull import hull_volume
@@ -46,7 +47,7 @@ from nbv.planning.planner import plan as sco_plan
 from nbv.planning.set_cover import greedy_max_coverage
 from nbv.planning.settings import PlannerSettings
 from nbv.planning.view_sets import view_sets
-from nbv.policies.registry import PCNBV_SPH
+from nbv.policies.registry import PCNBV, PCNBV_SPH
 from nbv.render.raycast import render_raycast
 
 #: Points of the small ground truth whose hull :func:`small_gt_hull_error` checks.
@@ -141,7 +142,8 @@ def run(
 ) -> list[dict]:
     """Measure every row; returns dicts with name, ours, reference, ratio, target (seconds).
 
-    ``network`` adds the PCNBV episode row (weights from ``checkpoint``, else untrained);
+    ``network`` adds the network rows of :func:`nbv.bench.network.network_rows` (PCNBV's
+    weights from ``checkpoint``, else the shipped ones; PCNBV-sph's shipped);
     ``render`` the rendering rows."""
     scene = bench_scene(seed)
     views, gt, cloud = scene["views"], scene["gt"], scene["cloud100k"]
@@ -274,25 +276,13 @@ def run(
         decision_row(stored, scene["poses"], scene["intrinsics"], load_scorer(SHIPPED_SCORER))
     )
     rows += capture_rows(views, scene["poses"], scene["intrinsics"])
+    rows += warm_rows()
     if network:
-        from nbv.bench.network import episode_seconds
+        from nbv.bench.network import network_rows
 
-        sph = PCNBV_SPH.weights(None)  # the shipped weights
-        episodes = [("PCNBV 9-view episode, 512 points (sampling + forwards)", checkpoint, 0.13),
-                    ("PCNBV-sph 9-view episode (signature + forwards)", sph, 0.04)]  # fmt: skip
-        for name, weights, target in episodes:
-            t = episode_seconds(stored, weights)
-            rows.append(
-                dict(
-                    name=name,
-                    ours=t["ours"],
-                    reference=t["reference"],
-                    ratio=t["reference"] / t["ours"],
-                    target=target,
-                    note="inference copy vs plain float32 network, "
-                    + (f"weights {weights.name}" if weights else "untrained weights"),
-                )
-            )
+        pcnbv = checkpoint if checkpoint is not None else PCNBV.weights(None)
+        rows += network_rows(stored, [("PCNBV", pcnbv, 0.13),
+                                      ("PCNBV-sph", PCNBV_SPH.weights(None), 0.04)])  # fmt: skip
     if render:
         import tempfile
 

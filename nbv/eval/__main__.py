@@ -7,14 +7,12 @@ exit status 2, and leaves no run folder behind (:mod:`nbv.config.cli`).
 """
 
 import logging
-import os
 
-# Torch's OpenMP threads (GNU libgomp) spin for a while before they sleep. A short spin keeps
-# them ready between the layers of a forward pass without taking a core from the numpy work
-# between two decisions: per 9-view episode, PCNBV 0.14 s and PCNBV-sph 0.045 s on 2 idle cores,
-# against 0.14 s and 0.095 s with libgomp's default spin and 0.21 s and 0.058 s with no spin
-# (OMP_WAIT_POLICY=PASSIVE). Set before torch is imported; the environment wins.
-os.environ.setdefault("GOMP_SPINCOUNT", "10000")
+from nbv.models.threads import configure_openmp
+
+# Before torch is imported: OpenMP threads that sleep when idle, so that a machine busy with
+# other work does not make every forward pass wait for spinning threads (nbv.models.threads).
+configure_openmp()
 
 from pathlib import Path  # noqa: E402
 

@@ -247,14 +247,18 @@ class EvalSettings:
         seed: every random draw (random views, probes, hull samples, disturbances) derives from
             this seed, the method, the model, the viewspace and the start view.
         threads: torch threads for the networks (0 = torch's default). ``python -m nbv.eval``
-            sets a short OpenMP spin (GOMP_SPINCOUNT=10000) unless the environment sets one; on
-            cores busy with other work, OMP_WAIT_POLICY=PASSIVE or threads=1 may cost less.
+            makes idle OpenMP threads sleep (OMP_WAIT_POLICY=PASSIVE, unless the environment
+            sets it: :mod:`nbv.models.threads`), so cores busy with other work cost about 1.1-2x,
+            not 4-11x.
         workers: worker processes, each running whole models (0 = one per available core, at
             most 8; 1 = everything in this process). With more than one, each worker's torch
             runs ``threads`` threads (0 = 1): the timing table is then of one thread per
             episode.
         progress: show a progress bar.
         plots: draw the PNG plots (matplotlib, Agg).
+        batched: run each method's episodes of a model in lockstep, a network deciding for all
+            of them in one batched forward pass (:mod:`nbv.policies.lockstep`); false: one
+            episode after another. Both give the same episodes; batched is faster.
     """
 
     run: str = field(kw_only=True)
@@ -285,6 +289,7 @@ class EvalSettings:
     )
     progress: bool = True
     plots: bool = True
+    batched: bool = True
 
     @property
     def out_dir(self) -> Path:

@@ -26,6 +26,7 @@ from nbv.dataset.records import ModelData
 from nbv.eval.tables import paired_difference
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull_sco import HullSCOPolicy
+from nbv.policies.lockstep import Batchable, NetworkRequest, Request
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import CHECKS
 from nbv.policies.volumetric import InformationGainPolicy
@@ -74,9 +75,14 @@ class RandomCloudNetwork(_Wrapper):
     rng: np.random.Generator
     radius: float = 0.5
 
-    def __call__(self, state: EpisodeState) -> int:
+    def request(self, state: EpisodeState) -> NetworkRequest:
+        """The random cloud and the true state, for a batched decision (the same draw as a
+        call)."""
         cloud = random_ball(max(len(state.cloud()), 1), self.radius, self.rng)
-        return self.inner.decide(cloud, state.view_state)
+        return NetworkRequest(self.inner, cloud, state.view_state)
+
+    def __call__(self, state: EpisodeState) -> int:
+        return NetworkRequest.answer_all([self.request(state)])[0]
 
 
 @dataclass
@@ -87,9 +93,14 @@ class PermutedStateNetwork(_Wrapper):
     inner: NetworkPolicy
     rng: np.random.Generator
 
-    def __call__(self, state: EpisodeState) -> int:
+    def request(self, state: EpisodeState) -> NetworkRequest:
+        """The true cloud and a permuted state, for a batched decision (the same draw as a
+        call)."""
         shown = permuted_state(state.view_state, self.rng)
-        return self.inner.decide(state.cloud(), shown, visited=state.view_state)
+        return NetworkRequest(self.inner, state.cloud(), shown, state.view_state)
+
+    def __call__(self, state: EpisodeState) -> int:
+        return NetworkRequest.answer_all([self.request(state)])[0]
 
 
 @dataclass
@@ -132,7 +143,22 @@ class NoisyPoints(_Wrapper):
         return self._model
 
     def __call__(self, state: EpisodeState) -> int | list[int]:
-        return self.inner(replace(state, model=self.noisy(state.model, state.viewspace)))
+        return self.inner(self.shown(state))
+
+    def shown(self, state: EpisodeState) -> EpisodeState:
+        """The state the wrapped policy is shown: the model's points disturbed."""
+        return replace(state, model=self.noisy(state.model, state.viewspace))
+
+
+@dataclass
+class NoisyNetwork(NoisyPoints):
+    """:class:`NoisyPoints` around a network that decides in batches (:class:`Batchable`)."""
+
+    inner: Batchable
+
+    def request(self, state: EpisodeState) -> Request:
+        """The wrapped network's request on the disturbed state."""
+        return self.inner.request(self.shown(state))
 
 
 #: Prefix of the checks' names in the records: ``position_noise_0.005``.
@@ -155,7 +181,7 @@ def disturbed(
     """The policy of ``check`` around an undisturbed ``policy`` of a method it applies to
     (``sigma``: the noise of ``position_noise``)."""
     if check == "position_noise":
-        return NoisyPoints(policy, rng, sigma)
+        return (NoisyNetwork if isinstance(policy, Batchable) else NoisyPoints)(policy, rng, sigma)
     if check == "random_cloud":
         return RandomCloudNetwork(policy, rng, radius)
     if check == "permuted_state":

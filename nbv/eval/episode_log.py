@@ -28,7 +28,8 @@ from nbv.utils.atomic import append_durably
 
 LOG_NAME = "episodes.jsonl"
 #: Settings that do not change any episode.
-_NOT_IDENTITY = ("out_dir", "progress", "plots", "threads", "workers")
+# How the episodes are run, not what they are (the batched path gives the same episodes).
+_NOT_IDENTITY = ("out_dir", "progress", "plots", "threads", "workers", "batched")
 
 
 def _plain(value):

@@ -29,8 +29,10 @@ from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.metrics import ModelMetrics, fill_metrics
 from nbv.eval.prepare import prepare_meshes, read_model, rendered_viewspaces, stored_name
-from nbv.eval.protocol import EpisodeRecord, episode_rng, run_record
+from nbv.eval.protocol import EpisodeRecord, episode_record, episode_rng
 from nbv.planning.gain_scorer import load_scorer
+from nbv.policies.episode import Episode, run_episode
+from nbv.policies.lockstep import EpisodeSpec, run_lockstep
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     METHODS,
@@ -314,11 +316,15 @@ class ModelResult(NamedTuple):
 def run_model(task: ModelTask) -> ModelResult:
     """Every job's episode on one model (in a worker process, or in this one), with its metrics
     (:mod:`nbv.eval.metrics`: the ground truth's KD-tree and each view's distances computed once
-    for all the model's episodes)."""
+    for all the model's episodes).
+
+    With ``settings.batched`` the episodes of each method (its checks included) run in lockstep
+    (:func:`nbv.policies.lockstep.run_lockstep`): a network decides for all of them in one
+    batched forward pass. The episodes are those of one-at-a-time runs."""
     settings, ds = task.settings, nbv.dataset.open(task.path)
     model = read_model(ds, task.rendered, task.key, settings.viewspaces)
     metrics = ModelMetrics(model, task.ctx.eps)
-    records = []
+    policies = []
     for job in task.jobs:
         # Repeat 0 keeps the generator of a single run: one seed's numbers stay.
         names = (job.method, job.check or "", task.key, job.viewspace, job.start)
@@ -326,8 +332,25 @@ def run_model(task: ModelTask) -> ModelResult:
         policy = METHODS[job.method].build(task.ctx, rng)
         if job.kind is not None:
             policy = disturbed(job.kind, policy, rng, settings.disturb.radius, job.sigma)
-        record = run_record(model, job.viewspace, job.start, job.method, policy, task.dataset,
-                            settings.n_views, job.check, job.repeat)  # fmt: skip
+        policies.append(policy)
+    episodes: list[Episode | None] = [None] * len(task.jobs)
+    if settings.batched:
+        by_method: dict[str, list[int]] = {}
+        for i, job in enumerate(task.jobs):
+            by_method.setdefault(job.method, []).append(i)
+        for indices in by_method.values():
+            specs = [EpisodeSpec(task.jobs[i].viewspace, task.jobs[i].start, policies[i])
+                     for i in indices]  # fmt: skip
+            for i, episode in zip(indices, run_lockstep(model, specs, settings.n_views),
+                                  strict=True):  # fmt: skip
+                episodes[i] = episode
+    else:
+        episodes = [run_episode(model, job.viewspace, job.start, policy, settings.n_views)
+                    for job, policy in zip(task.jobs, policies, strict=True)]  # fmt: skip
+    records = []
+    for job, policy, episode in zip(task.jobs, policies, episodes, strict=True):
+        record = episode_record(model, job.viewspace, job.start, job.method, policy,
+                                task.dataset, episode, job.check, job.repeat)  # fmt: skip
         record.metrics = metrics.episode(job.viewspace, record.views, record.coverage)
         records.append(record)
     return ModelResult(task.dataset, task.key, records, model.gt_hull_error, model.gt_hull_volume)

@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from nbv.dataset.records import ModelData
-from nbv.policies.episode import run_episode, stage_seconds
+from nbv.policies.episode import Episode, run_episode, stage_seconds
 from nbv.utils.seeding import named_rng
 
 
@@ -104,6 +104,23 @@ def run_record(
 ) -> EpisodeRecord:
     """Run one episode of ``policy`` and record it."""
     episode = run_episode(model, viewspace, start, policy, n_views=n_views)
+    return episode_record(model, viewspace, start, method, policy, dataset, episode, check,
+                          repeat)  # fmt: skip
+
+
+def episode_record(
+    model: ModelData,
+    viewspace: str,
+    start: int,
+    method: str,
+    policy,
+    dataset: str,
+    episode: Episode,
+    check: str | None = None,
+    repeat: int = 0,
+) -> EpisodeRecord:
+    """The record of an episode ``policy`` ran (:func:`run_episode` or
+    :func:`nbv.policies.lockstep.run_lockstep`)."""
     return EpisodeRecord(
         method=method,
         check=check,

@@ -2,6 +2,8 @@
 
 Modules, each importing only the ones above it:
 
+- :mod:`nbv.models.threads`: :func:`configure_openmp`, torch's OpenMP threads set to sleep when
+  idle (no torch import; entry points call it before torch loads).
 - :mod:`nbv.models.precision`: :data:`PRECISIONS`, :func:`resolve_precision`, :func:`autocast`
   (bfloat16 where the hardware runs it), :func:`flush_denormals`.
 - :mod:`nbv.models.neighbours`: k-nearest-neighbour search in feature space

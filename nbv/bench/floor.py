@@ -1,0 +1,107 @@
+"""The FLOP floor of a network episode on this machine: the float32 FLOPs of a PCNBV forward
+pass, counted from its layer shapes, over the CPU's peak float32 FLOP/s.
+
+Peak float32 FLOP/s = cores x clock x lanes x 2 (a fused multiply-add is two FLOPs) x 2 (FMA
+pipes a core). Cores are the ones this process may run on; the clock is the CPU's highest
+(``cpuinfo_max_freq``, else ``cpu MHz`` of ``/proc/cpuinfo``); lanes are the float32 lanes of a
+vector: 16 with AVX-512 on an Intel CPU, 8 with AVX2 and FMA (and on AMD's Zen 4, which runs
+AVX-512 on two 256-bit pipes), 4 with SSE alone. Two FMA pipes is every AVX2 core's count since
+Intel's Haswell and AMD's Zen 2; a CPU with one is overrated, so the floor is a lower bound.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from nbv.models.config import PCNBVConfig
+
+
+def pcnbv_flops(config: PCNBVConfig, n_points: int) -> int:
+    """FLOPs (2 a multiply-add) of the matrix products of one PCNBV forward pass of one sample
+    as :mod:`nbv.models.layers` computes them (the dense EdgeConv's split first layer, the
+    neighbour search's distance products, attention, the 1x1 convs, the head); element-wise
+    work (ReLU, softmax, max, biases) is left out, a few percent at most.
+
+    Args:
+        config: the network's sizes.
+        n_points: points the sample holds (``eval_points``, or ``4 (lmax+1)^2`` for a signature).
+    """
+    n, c0, g, k = n_points, config.first_channels, config.growth, config.k
+    macs = n * 3 * c0  # the first 1x1 conv
+    for block in range(config.blocks):
+        if block:  # the squeeze 1x1 conv to c0 before every block but the first
+            macs += n * (c0 + block * config.block_out_channels) * c0
+        macs += n * n * c0  # the neighbour search's distance product
+        macs += 2 * n * c0 * g  # the first dense layer: neighbour and centre parts, per point
+        for layer in range(1, config.dense_layers):
+            macs += n * k * layer * g * g + n * c0 * g  # edge part per edge, centre part per point
+    c, a = config.concat_channels, config.attention_channels
+    macs += 2 * n * c * a + n * c * c  # query, key, value
+    macs += n * n * a + n * n * c  # q k^T, attention times values
+    widths = (c, *config.conv_channels)
+    macs += sum(n * p * q for p, q in zip(widths[:-1], widths[1:], strict=True))
+    widths = (config.conv_channels[-1], *config.fc_channels, config.n_views)
+    macs += sum(p * q for p, q in zip(widths[:-1], widths[1:], strict=True))
+    return 2 * macs
+
+
+@dataclass(frozen=True)
+class Peak:
+    """The CPU's peak float32 FLOP/s and what it is made of (:func:`peak_flops`)."""
+
+    cores: int
+    ghz: float
+    lanes: int
+    flops: float
+
+    def formula(self) -> str:
+        """``cores x GHz x lanes x 2 x 2 = GFLOP/s``, as the bench's note prints it."""
+        return (
+            f"{self.cores} cores x {self.ghz:.2f} GHz x {self.lanes} lanes x 2 (FMA) x 2 pipes "
+            f"= {self.flops / 1e9:.0f} GFLOP/s"
+        )
+
+
+def peak_flops(cpuinfo: str | None = None, max_khz: int | None = None,
+               cores: int | None = None) -> Peak:  # fmt: skip
+    """This machine's peak float32 FLOP/s (the module docstring's formula).
+
+    Args:
+        cpuinfo: the text of ``/proc/cpuinfo``; None = read it.
+        max_khz: the highest clock in kHz; None = ``/sys/.../cpuinfo_max_freq`` when readable,
+            else ``cpu MHz`` of ``cpuinfo``.
+        cores: cores to count; None = those this process may run on.
+
+    Raises:
+        ValueError: ``cpuinfo`` names no flags or no clock.
+    """
+    if cpuinfo is None:
+        cpuinfo = Path("/proc/cpuinfo").read_text()
+    fields: dict[str, str] = {}
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        fields.setdefault(key.strip(), value.strip())
+    if "flags" not in fields:
+        raise ValueError("/proc/cpuinfo names no CPU flags: the peak FLOP/s is unknown")
+    flags = set(fields["flags"].split())
+    if max_khz is None:
+        limit = Path("/sys/devices/system/cpu/cpu0/cpufreq/cpuinfo_max_freq")
+        if limit.is_file():
+            max_khz = int(limit.read_text())
+        elif "cpu MHz" in fields:
+            max_khz = int(float(fields["cpu MHz"]) * 1000)
+        else:
+            raise ValueError("neither cpufreq nor /proc/cpuinfo gives the clock")
+    if cores is None:
+        cores = len(os.sched_getaffinity(0))
+    intel = fields.get("vendor_id") == "GenuineIntel"
+    if "avx512f" in flags and intel:
+        lanes = 16
+    elif {"avx2", "fma"} <= flags:
+        lanes = 8
+    else:
+        lanes = 4
+    ghz = max_khz / 1e6
+    return Peak(cores, ghz, lanes, cores * ghz * 1e9 * lanes * 2 * 2)

@@ -1,0 +1,194 @@
+"""Episodes of one model stepped together, so that a network decides for all of them at once.
+
+:func:`run_lockstep` runs many episodes (each its own viewspace, start view and policy) in
+lockstep: at every step each episode that needs a decision asks its policy. A policy that is
+:class:`Batchable` does not decide alone: it states what its network should be shown
+(:meth:`Batchable.request`), and the requests of every episode that runs the same network are
+answered by one batched forward pass (``NetworkPolicy.decide_many``). Every other policy is called
+as :func:`nbv.policies.episode.run_episode` calls it.
+
+Each episode is exactly what :func:`~nbv.policies.episode.run_episode` gives for it alone: its
+policy, state and generator are its own, so the order in which episodes are served changes no
+draw, and a batched forward pass computes each row from its own episode's input (the views match
+one-at-a-time inference; ``tests/test_lockstep.py`` checks it on the shipped weights in float32).
+The seconds of a batched decision are shared equally among its episodes.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import NamedTuple, Protocol, runtime_checkable
+
+import numpy as np
+
+from nbv.dataset.records import ModelData
+from nbv.policies.episode import EPISODE_VIEWS, Episode, EpisodeState, Policy, curves
+
+
+class Request(Protocol):
+    """One episode's ask for a batched decision.
+
+    Attributes:
+        policy: the episode's own policy (a ``fresh()`` copy of a network policy: its ``model``
+            is the network the episodes share); it records the decision's timings and notes.
+    """
+
+    policy: object
+
+    @staticmethod
+    def answer_all(requests: list) -> list[int]:
+        """The chosen views of requests of one type and one network, one batched pass."""
+        ...
+
+
+class NetworkRequest(NamedTuple):
+    """What a PCNBV episode's network should be shown for its next decision.
+
+    Attributes:
+        policy: the episode's own :class:`~nbv.policies.network.NetworkPolicy`.
+        cloud: (N, 3) the cloud it is shown.
+        shown: (V,) bool the view state it is shown.
+        visited: (V,) bool the views it may not choose; None: ``shown``.
+    """
+
+    policy: object
+    cloud: np.ndarray
+    shown: np.ndarray
+    visited: np.ndarray | None = None
+
+    @staticmethod
+    def answer_all(requests: list[NetworkRequest]) -> list[int]:
+        """``decide_many`` of the first request's network for all of them."""
+        return requests[0].policy.decide_many(
+            [r.cloud for r in requests],
+            [r.shown for r in requests],
+            None if all(r.visited is None for r in requests)
+            else [r.shown if r.visited is None else r.visited for r in requests],
+            episodes=[r.policy for r in requests],
+        )  # fmt: skip
+
+
+class StateRequest(NamedTuple):
+    """An episode's state, for a policy that batches whole states (``choose_many``)."""
+
+    policy: object
+    state: EpisodeState
+
+    @staticmethod
+    def answer_all(requests: list[StateRequest]) -> list[int]:
+        """``choose_many`` of the first request's policy for all of them."""
+        return requests[0].policy.choose_many(
+            [r.state for r in requests], episodes=[r.policy for r in requests]
+        )
+
+
+@runtime_checkable
+class Batchable(Protocol):
+    """A policy whose decision is one forward pass of a network that others may share."""
+
+    def request(self, state: EpisodeState) -> Request:
+        """What its network should be shown in ``state`` (drawing what the decision draws)."""
+        ...
+
+
+@dataclass
+class EpisodeSpec:
+    """One episode to run: its viewspace, start view and policy."""
+
+    viewspace: str
+    start: int
+    policy: Policy
+
+
+@dataclass
+class _Running:
+    spec: EpisodeSpec
+    state: EpisodeState
+    n_views: int
+    queue: list[int] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+
+    @property
+    def done(self) -> bool:
+        return len(self.state.order) >= self.n_views
+
+    def take(self, choice: int | list[int] | tuple[int, ...]) -> None:
+        self.queue = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
+        if not self.queue:
+            raise ValueError("the policy returned no view")
+
+    def step(self) -> None:
+        v = self.queue.pop(0)
+        n = len(self.state.view_state)
+        if not 0 <= v < n or self.state.view_state[v]:
+            raise ValueError(f"the policy chose view {v}, visited or outside 0..{n - 1}")
+        self.state.view_state[v] = True
+        self.state.order.append(v)
+
+
+def _start(model: ModelData, spec: EpisodeSpec, n_views: int) -> _Running:
+    n = len(model.views[spec.viewspace].poses)
+    if not 0 <= spec.start < n:
+        raise ValueError(f"start view {spec.start} is outside 0..{n - 1}")
+    state = EpisodeState(model, spec.viewspace, np.zeros(n, dtype=bool), [int(spec.start)])
+    state.view_state[spec.start] = True
+    return _Running(spec, state, min(n_views, n))
+
+
+def _decide_batched(waiting: list[tuple[_Running, Request, float]]) -> None:
+    """One batched decision for the requests of one network; each episode's time is its own
+    request's seconds plus an equal share of the batched pass's."""
+    requests = [r for _, r, _ in waiting]
+    t0 = time.perf_counter()
+    choices = type(requests[0]).answer_all(requests)
+    share = (time.perf_counter() - t0) / len(waiting)
+    for (run, _, asked), choice in zip(waiting, choices, strict=True):
+        run.times.append(asked + share)
+        run.take(choice)
+
+
+def run_lockstep(
+    model: ModelData, specs: Sequence[EpisodeSpec], n_views: int = EPISODE_VIEWS
+) -> list[Episode]:
+    """Run every episode of ``specs`` on ``model`` until each has ``n_views`` views (or its
+    viewspace's size), the batchable policies' decisions batched by network.
+
+    Returns:
+        The episodes in the order of ``specs``: each as :func:`run_episode` gives it.
+
+    Raises:
+        ValueError: a start view outside its viewspace, or a policy that chose a visited or
+            out-of-range view.
+    """
+    running = [_start(model, spec, n_views) for spec in specs]
+    while True:
+        active = [run for run in running if not run.done]
+        if not active:
+            break
+        batches: dict[tuple[type, int], list[tuple[_Running, Request, float]]] = {}
+        for run in active:
+            if run.queue:
+                continue
+            policy = run.spec.policy
+            t0 = time.perf_counter()
+            if isinstance(policy, Batchable):
+                request = policy.request(run.state)
+                # Batched by network: the fresh() copies of one checkpoint share its model.
+                key = (type(request), id(request.policy.model))
+                batches.setdefault(key, []).append((run, request, time.perf_counter() - t0))
+            else:
+                choice = policy(run.state)
+                run.times.append(time.perf_counter() - t0)
+                run.take(choice)
+        for waiting in batches.values():
+            _decide_batched(waiting)
+        for run in active:
+            run.step()
+    episodes = []
+    for run in running:
+        notes: list[str] = []
+        cov, vig = curves(model, run.spec.viewspace, run.state.order, notes)
+        episodes.append(Episode(run.state.order, cov, vig, run.times, notes))
+    return episodes

@@ -1,0 +1,129 @@
+"""Episodes in lockstep (nbv.policies.lockstep): a network decides for many episodes in one
+batched forward pass, and every episode is the one it would be alone: the same views, for every
+network method on the shipped weights in float32, for the disturbance checks, and for the
+evaluator's records."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_eval import tiny_settings
+from test_policies import make_tiny_dataset, save_tiny_checkpoint
+
+import nbv.dataset
+from nbv.assets.weights import shipped_weights
+from nbv.eval.disturb import disturbed
+from nbv.eval.evaluate import evaluate
+from nbv.eval.protocol import episode_rng
+from nbv.geometry.camera import Intrinsics
+from nbv.planning.settings import PlannerSettings
+from nbv.policies.conditioned_network import ConditionedPolicy
+from nbv.policies.episode import run_episode
+from nbv.policies.lockstep import Batchable, EpisodeSpec, run_lockstep
+from nbv.policies.network import NetworkPolicy
+from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS, MethodContext
+
+STARTS = (0, 1, 3, 7, 10, 15, 24, 27, 30, 32)
+VIEWSPACES = ("original", "permuted")
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    ds = nbv.dataset.open(make_tiny_dataset(tmp_path_factory.mktemp("lockstep") / "data", 1))
+    return ds.model(ds.keys()[0])
+
+
+@pytest.fixture(scope="module")
+def shipped_fp32() -> MethodContext:
+    """The shipped networks, every one in float32 (the batched and single forwards may then
+    differ only in the last bits of float32 sums)."""
+    networks = {}
+    for method, kind in NETWORK_INPUTS.items():
+        path = shipped_weights(method)
+        networks[method] = (
+            ConditionedPolicy.from_checkpoint(path)
+            if kind.startswith("directions")
+            else NetworkPolicy.from_checkpoint(path, n_views=33, precision="fp32")
+        )
+    return MethodContext(networks, PlannerSettings(n_samp=2048), Intrinsics.centred(64, 48, 48.0),
+                         0.0070710678, 10)  # fmt: skip
+
+
+def _policies(ctx: MethodContext, method: str, check: str | None = None, sigma: float = 0.0):
+    out = []
+    for vs in VIEWSPACES:
+        for start in STARTS:
+            rng = episode_rng(0, method, check or "", vs, start)
+            policy = METHODS[method].build(ctx, rng)
+            if check is not None:
+                policy = disturbed(check, policy, rng, 0.5, sigma)
+            out.append(EpisodeSpec(vs, start, policy))
+    return out
+
+
+@pytest.mark.parametrize("method", list(NETWORK_INPUTS))
+def test_every_network_picks_the_views_of_one_at_a_time_inference(model, shipped_fp32, method):
+    batched = run_lockstep(model, _policies(shipped_fp32, method))
+    single = [run_episode(model, s.viewspace, s.start, s.policy)
+              for s in _policies(shipped_fp32, method)]  # fmt: skip
+    assert all(isinstance(s.policy, Batchable) for s in _policies(shipped_fp32, method))
+    assert len(batched) == len(VIEWSPACES) * len(STARTS)
+    for a, b in zip(batched, single, strict=True):
+        assert a.views == b.views
+        np.testing.assert_array_equal(a.coverage, b.coverage)
+        assert len(a.times) == len(b.times) == 9
+
+
+@pytest.mark.parametrize(
+    ("check", "sigma"),
+    [("random_cloud", 0.0), ("permuted_state", 0.0), ("position_noise", 0.005)],
+)
+def test_disturbed_networks_draw_and_pick_as_alone(model, shipped_fp32, check, sigma):
+    for method in ("pcnbv", "pcnbv_sph"):
+        batched = run_lockstep(model, _policies(shipped_fp32, method, check, sigma))
+        single = [run_episode(model, s.viewspace, s.start, s.policy)
+                  for s in _policies(shipped_fp32, method, check, sigma)]  # fmt: skip
+        assert [e.views for e in batched] == [e.views for e in single]
+
+
+def test_mixed_policies_and_one_shot_plans_run_as_alone(model, shipped_fp32):
+    """Batched networks beside policies that decide alone (random, a one-shot planner, ig)."""
+    specs = lambda: [s for m in ("random", "hull_sco", "ig", "pcnbv", "vcnbv_map")  # noqa: E731
+                     for s in _policies(shipped_fp32, m)]  # fmt: skip
+    batched = run_lockstep(model, specs())
+    single = [run_episode(model, s.viewspace, s.start, s.policy) for s in specs()]
+    assert [e.views for e in batched] == [e.views for e in single]
+    for a, b in zip(batched, single, strict=True):
+        np.testing.assert_array_equal(a.vig, b.vig)
+
+
+def test_a_bad_start_or_a_visited_pick_is_refused(model, shipped_fp32):
+    with pytest.raises(ValueError, match="start view 40 is outside 0..32"):
+        run_lockstep(model, [EpisodeSpec("original", 40, METHODS["random"].build(shipped_fp32,
+                                          np.random.default_rng(0)))])  # fmt: skip
+    with pytest.raises(ValueError, match="chose view 0, visited"):
+        run_lockstep(model, [EpisodeSpec("original", 0, lambda state: 0)])
+
+
+def test_the_evaluator_records_the_same_episodes_batched_or_not(tmp_path):
+    tiny = {
+        "data": make_tiny_dataset(tmp_path / "data"),
+        **{name: save_tiny_checkpoint(tmp_path / f"{name}.pt",
+                                      {"vcnbv": "directions", "vcnbv_map": "directions_map",
+                                       "pcnbv_sph": "signature"}.get(name, "points"))
+           for name in NETWORK_INPUTS},
+    }  # fmt: skip
+    base = tiny_settings(tiny, Path(tmp_path / "batched"), checks=CHECKS, random_repeats=2,
+                         plots=False)  # fmt: skip
+    one = evaluate(base).records
+    two = evaluate(replace(base, run="single", batched=False)).records
+    assert len(one) == len(two) > 0
+    assert {r.method for r in one} == set(METHODS)
+    for a, b in zip(one, two, strict=True):
+        assert (a.method, a.check, a.key, a.viewspace, a.start, a.repeat, a.views) == (
+            b.method, b.check, b.key, b.viewspace, b.start, b.repeat, b.views)  # fmt: skip
+        np.testing.assert_array_equal(a.coverage, b.coverage)
+        assert a.notes == b.notes and a.counts == b.counts
