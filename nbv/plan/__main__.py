@@ -3,16 +3,23 @@
 Settings: ``conf/plan.yaml`` (declared by :class:`nbv.plan.config.PlanSettings`). From a mesh it
 plays a whole episode on ray-cast captures (coverage by view against the mesh;
 ``save_captures=K`` also writes the first K views as a capture folder); from a capture folder it
-plans the next view, or a one-shot planner's whole remaining plan. Writes plan.json, cloud.ply,
-plan.png and plan.html into the run folder (:mod:`nbv.plan.output`). A refused setting or bad
+plans the next view, or a one-shot planner's whole remaining plan (a
+:class:`nbv.plan.planner.Planner` on the folder's views, one decision). Writes plan.json,
+cloud.ply, reconstruction.ply (the depth views fused), plan.png and plan.html into the run
+folder (:mod:`nbv.plan.output`). A refused setting or bad
 input ends with one line on stderr naming the key or file, exit status 2, and no run folder left
 behind (:mod:`nbv.config.cli`).
 """
 
 import logging
 
-from nbv.config.cli import command
-from nbv.plan.config import ENTRY
+from nbv.models.threads import configure_openmp
+
+# Before torch is imported (nbv.models.threads): a robot's computer is rarely idle.
+configure_openmp()
+
+from nbv.config.cli import command  # noqa: E402
+from nbv.plan.config import ENTRY  # noqa: E402
 
 PROG = "nbv.plan"
 # Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.
@@ -22,13 +29,27 @@ log = logging.getLogger("nbv.plan")
 def start(cfg) -> tuple:
     """The settings, the input read and the plan made: nothing is written yet."""
     from nbv.plan.mesh import plan_mesh
-    from nbv.plan.next_view import plan_captures
+    from nbv.plan.planner import Planner
+    from nbv.plan.reconstruction import reconstruct_episode
 
     settings = ENTRY.build(cfg)
     if settings.mesh is not None:
         result, depth = plan_mesh(settings)
+        result.reconstruction = reconstruct_episode(settings, result, depth)
     else:
-        result, depth = plan_captures(settings), None
+        planner = Planner.load(settings.captures, settings)
+        result, depth = planner.decide(), None
+        result.reconstruction = planner.reconstruct()
+        if result.reconstruction is None:
+            result.notes.append("no reconstruction: every view is a point cloud")
+    fused = result.reconstruction
+    if fused is not None:
+        log.info("reconstruction: %d views fused at voxel %.4g: %d vertices, %d triangles",
+                 len(fused.views), fused.voxel, len(fused.vertices),
+                 len(fused.triangles))  # fmt: skip
+        if fused.scores is not None:
+            log.info("reconstruction against the mesh: %s",
+                     ", ".join(f"{k} {v:.4g}" for k, v in fused.scores.items()))  # fmt: skip
     return settings, result, depth
 
 

@@ -43,6 +43,7 @@ whole or not at all.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import shutil
@@ -53,7 +54,7 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 
-from nbv.geometry.camera import Intrinsics, backproject, opencv_to_blender, project, valid_depth
+from nbv.geometry.camera import Intrinsics, opencv_to_blender, pixel_rays, project, valid_depth
 from nbv.planning.occupancy import Misses
 
 #: The index file of a capture folder.
@@ -92,7 +93,9 @@ class Capture:
         median_depth: median planar depth of the view's points, world units.
         misses: what its rays that returned nothing mean, world units (None: unknown; see
             ``no_return`` and ``max_range`` in the module docstring).
-        no_return: the view's ``no_return``.
+        no_return: the view's ``no_return``; max_range: its ``max_range`` (world units, or None).
+        depth: a depth image view's (H, W) float64 depth in world units as read (before the
+            range cut: 0, NaN or inf where nothing was measured); None for a point cloud view.
     """
 
     file: Path
@@ -102,6 +105,8 @@ class Capture:
     median_depth: float
     misses: Misses | None = None
     no_return: str = NO_RETURN[0]
+    max_range: float | None = None
+    depth: np.ndarray | None = None
 
 
 def check_rigid(pose: object, where: str) -> np.ndarray:
@@ -279,7 +284,6 @@ def _read_view(folder: Path, i: int, view: object, spec: dict, axes: str) -> Cap
         )
     if not path.is_file():
         raise CaptureError(f"{where}: no such file")
-    intrinsics = None
     if suffix in DEPTH_SUFFIXES:
         given = view.get("intrinsics", spec.get("intrinsics"))
         if given is None:
@@ -291,36 +295,89 @@ def _read_view(folder: Path, i: int, view: object, spec: dict, axes: str) -> Cap
         if scale is not None and not (isinstance(scale, int | float) and scale > 0):
             raise CaptureError(f"{where}: depth_scale={scale!r}; must be a positive number")
         depth = _read_depth(path, scale, where)
-        if depth.shape != (intrinsics.height, intrinsics.width):
-            raise CaptureError(
-                f"{where}: depth is {depth.shape[1]} x {depth.shape[0]}, the intrinsics say "
-                f"{intrinsics.width} x {intrinsics.height}"
-            )
-        measured = valid_depth(depth)
-        beyond = measured & (depth > max_range) if max_range is not None else None
-        if beyond is not None:
-            depth = np.where(beyond, np.inf, depth)
-        points = backproject(depth, intrinsics, pose)
+        return depth_capture(depth, intrinsics, pose, path, no_return, max_range)
+    return cloud_capture(_read_cloud(path, where), pose, path, no_return, max_range)
+
+
+@functools.lru_cache(maxsize=8)
+def _pixel_rays(intrinsics: Intrinsics) -> np.ndarray:
+    """:func:`nbv.geometry.camera.pixel_rays`, once per camera (read-only)."""
+    rays = pixel_rays(intrinsics)
+    rays.flags.writeable = False
+    return rays
+
+
+def depth_capture(
+    depth: np.ndarray,
+    intrinsics: Intrinsics,
+    pose: np.ndarray,
+    file: Path,
+    no_return: str = NO_RETURN[0],
+    max_range: float | None = None,
+) -> Capture:
+    """A depth image view as the planner reads it (a file's, or one given to
+    :class:`nbv.plan.planner.Planner`).
+
+    Args:
+        depth: (H, W) float64 planar depth, world units; 0, NaN or inf where nothing was
+            measured.
+        intrinsics: its camera ((H, W) must be its size).
+        pose: (4, 4) rigid camera-to-world, OpenCV axes.
+        file: the view's file (named in messages).
+        no_return, max_range: what its missing pixels mean (module docstring).
+
+    Raises:
+        CaptureError: a size other than the camera's, or no pixel with a depth (within the range).
+    """
+    where = f"{file}"
+    if depth.shape != (intrinsics.height, intrinsics.width):
+        raise CaptureError(
+            f"{where}: depth is {depth.shape[1]} x {depth.shape[0]}, the intrinsics say "
+            f"{intrinsics.width} x {intrinsics.height}"
+        )
+    measured = valid_depth(depth)
+    beyond = measured & (depth > max_range) if max_range is not None else None
+    kept = measured & ~beyond if beyond is not None else measured
+    # backproject's arithmetic, on the camera's rays computed once (a robot's loop adds a
+    # 640 x 480 view at every decision).
+    cam = _pixel_rays(intrinsics)[kept] * depth[kept].astype(np.float64)[:, None]
+    points = cam @ pose[:3, :3].T + pose[:3, 3]
+    if len(points) == 0:
+        raise CaptureError(
+            f"{where}: empty view: no pixel holds a depth"
+            + (f" within max_range={max_range}" if max_range is not None else "")
+        )
+    mask = ~measured if no_return == "free" else np.zeros(depth.shape, dtype=bool)
+    if beyond is not None:
+        mask |= beyond
+    declared = no_return == "free" or bool(mask.any())
+    misses = Misses(mask, max_range, intrinsics) if declared else None
+    # A pixel's planar depth is its point's: no projection needed.
+    return Capture(file, points, pose, intrinsics, float(np.median(depth[kept])), misses,
+                   no_return, max_range, depth)  # fmt: skip
+
+
+def cloud_capture(
+    points: np.ndarray,
+    pose: np.ndarray,
+    file: Path,
+    no_return: str = NO_RETURN[0],
+    max_range: float | None = None,
+) -> Capture:
+    """A point cloud view (N, 3) float64 world points (finite) with its (4, 4) camera-to-world
+    pose, as the planner reads it; ``max_range`` drops the points beyond it (planar depth).
+
+    Raises:
+        CaptureError: no point is left (within the range).
+    """
+    if max_range is not None:
+        _, z = project(points, Intrinsics(), pose)
+        points = points[z <= max_range]
         if len(points) == 0:
-            raise CaptureError(
-                f"{where}: empty view: no pixel holds a depth"
-                + (f" within max_range={max_range}" if max_range is not None else "")
-            )
-        mask = ~measured if no_return == "free" else np.zeros(depth.shape, dtype=bool)
-        if beyond is not None:
-            mask |= beyond
-        declared = no_return == "free" or bool(mask.any())
-        misses = Misses(mask, max_range, intrinsics) if declared else None
-    else:
-        points = _read_cloud(path, where)
-        if max_range is not None:
-            _, z = project(points, Intrinsics(), pose)
-            points = points[z <= max_range]
-            if len(points) == 0:
-                raise CaptureError(f"{where}: empty view: no point within max_range={max_range}")
-        misses = Misses(None, max_range) if no_return == "free" else None
-    _, z = project(points, intrinsics or Intrinsics(), pose)
-    return Capture(path, points, pose, intrinsics, float(np.median(z)), misses, no_return)
+            raise CaptureError(f"{file}: empty view: no point within max_range={max_range}")
+    misses = Misses(None, max_range) if no_return == "free" else None
+    _, z = project(points, Intrinsics(), pose)
+    return Capture(file, points, pose, None, float(np.median(z)), misses, no_return, max_range)
 
 
 def _sensor(view: dict, spec: dict, where: str) -> tuple[str, float | None]:
@@ -336,6 +393,23 @@ def _sensor(view: dict, spec: dict, where: str) -> tuple[str, float | None]:
             f"{where}: max_range={max_range!r}; must be a positive distance (world units) or null"
         )
     return no_return, None if max_range is None else float(max_range)
+
+
+def select_views(
+    captures: list[Capture], views: tuple[int, ...], folder: str | os.PathLike
+) -> list[Capture]:
+    """The captures ``views`` (indices of ``views.json``'s list), in that order.
+
+    Raises:
+        CaptureError: an index the folder does not hold.
+    """
+    bad = [i for i in views if i >= len(captures)]
+    if bad:
+        raise CaptureError(
+            f"views={list(views)}: {folder} holds {len(captures)} views (indices 0.."
+            f"{len(captures) - 1})"
+        )
+    return [captures[i] for i in views]
 
 
 def check_views_see(
@@ -428,3 +502,80 @@ def write_captures(
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def _exact_float32(depth: np.ndarray) -> np.ndarray:
+    """The depth as float32 when that loses nothing (a float32 source), else float64: a folder
+    read back gives the same points bit for bit."""
+    single = depth.astype(np.float32)
+    return single if np.array_equal(single.astype(np.float64), depth, equal_nan=True) else depth
+
+
+def write_views(
+    folder: str | os.PathLike,
+    captures: list[Capture],
+    center: np.ndarray | None = None,
+    radius: float | None = None,
+    extra: dict[str, str] | None = None,
+    replace: bool = False,
+) -> None:
+    """Write views read or given before as a capture folder that reads back to the same views:
+    depth images as ``view_NN.npy`` (world units, as read: before the range cut), point clouds
+    as ``view_NN.ply``; each view with its own intrinsics, ``no_return`` and ``max_range``.
+
+    Args:
+        folder: the folder; with ``replace`` an existing one is swapped for the new one (never
+            half of each), else it must be new or empty.
+        captures: the views, in order.
+        center, radius: ``views.json``'s ``object`` (world units), or None.
+        extra: more text files to write into the folder, by name (read by their own readers;
+            :func:`read_captures` reads only ``views.json`` and the views).
+        replace: replace an existing folder.
+    """
+    import open3d as o3d
+
+    folder = Path(folder)
+    if not replace and folder.exists() and any(folder.iterdir()):
+        raise CaptureError(f"{folder}: exists and is not empty; captures go to a new folder")
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
+    old = None
+    try:
+        views = []
+        for i, c in enumerate(captures):
+            entry: dict = {}
+            if c.depth is not None:
+                entry["file"] = f"view_{i:02d}.npy"
+                np.save(tmp / entry["file"], _exact_float32(np.asarray(c.depth, np.float64)))
+                entry["intrinsics"] = c.intrinsics.as_dict()
+            else:
+                entry["file"] = f"view_{i:02d}.ply"
+                cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(c.points))
+                if not o3d.io.write_point_cloud(str(tmp / entry["file"]), cloud):
+                    raise OSError(f"{tmp / entry['file']}: Open3D could not write the cloud")
+            entry["pose"] = np.asarray(c.pose).tolist()
+            entry["no_return"] = c.no_return
+            if c.max_range is not None:
+                entry["max_range"] = float(c.max_range)
+            views.append(entry)
+        spec: dict = {"axes": "opencv"}
+        if center is not None and radius is not None:
+            spec["object"] = {"center": np.asarray(center).tolist(), "radius": float(radius)}
+        spec["views"] = views
+        (tmp / INDEX).write_text(json.dumps(spec, indent=1))
+        for name, text in (extra or {}).items():
+            (tmp / name).write_text(text)
+        if folder.exists() and any(folder.iterdir()):
+            old = folder.with_name(f".{folder.name}.old")
+            shutil.rmtree(old, ignore_errors=True)
+            os.replace(folder, old)
+        elif folder.exists():
+            folder.rmdir()
+        os.replace(tmp, folder)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        if old is not None and not folder.exists():
+            os.replace(old, folder)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)

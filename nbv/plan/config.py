@@ -18,6 +18,7 @@ from typing import Any
 from nbv.config.schema import CameraConfig, ConfigError, PathsConfig, ProtocolConfig, check_views
 from nbv.config.settings import Entry, check_ranges, setting
 from nbv.geometry.camera import Intrinsics
+from nbv.geometry.fusion import FusionSettings
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.plan.candidates import CandidateSettings
@@ -29,6 +30,8 @@ from nbv.policies.registry import IG, METHODS, NETWORK_INPUTS
 #: The methods a user may plan with: those that do not read the ground truth.
 PLANNABLE = tuple(name for name, m in METHODS.items() if not m.ground_truth)
 _DISTANCE = "null or a positive distance"
+INPUTS = ("give exactly one input: mesh=<mesh file> (simulated captures) or "
+          "captures=<folder with views.json>")  # fmt: skip
 
 
 def _null_or_positive(value: float | None) -> bool:
@@ -134,6 +137,9 @@ class PlanSettings:
             to simulate captures of: a whole episode. Exclusive with ``captures``.
         captures: the input, a capture folder (``views.json`` and one file a view; the format is
             in :mod:`nbv.plan.captures`): the next view, or a one-shot planner's whole plan.
+            (:class:`nbv.plan.planner.Planner` takes neither: its views are given one by one.)
+        views: captures input: the views of the folder to plan from, by their index in
+            ``views.json`` (e.g. ``[0, 7, 14]``), in that order; null takes them all.
         method: a registered method that does not read the ground truth (:data:`PLANNABLE`).
         checkpoint: the weights of a network method; null = ``paths.checkpoints.<method>``, and
             when that file does not exist the weights the package ships.
@@ -159,6 +165,8 @@ class PlanSettings:
         captures_out: where; null = ``<out_dir>/captures``. It must be new or empty.
         hull: the convex-hull planners' settings (:class:`PlannerSettings`).
         ig: the information-gain planners' settings (:class:`VolumetricSettings`).
+        reconstruction: the depth views fused into ``reconstruction.ply``
+            (:class:`~nbv.geometry.fusion.FusionSettings`).
         seed: every random draw (random views, hull samples, point subsets, the mesh's ground
             truth).
         picture: draw ``plan.png`` (matplotlib).
@@ -169,6 +177,11 @@ class PlanSettings:
 
     mesh: Path | None = None
     captures: Path | None = None
+    views: tuple[int, ...] | None = setting(
+        None, check=lambda v: v is None or (len(v) > 0 and all(i >= 0 for i in v)
+                                            and len(set(v)) == len(v)),
+        allowed="null or a non-empty list of distinct view indices >= 0",
+    )  # fmt: skip
     method: str = IG.name
     checkpoint: Path | None = None
     viewspace: ViewspaceSettings = setting(factory=ViewspaceSettings)
@@ -187,17 +200,16 @@ class PlanSettings:
     captures_out: Path | None = None
     hull: PlannerSettings = setting(factory=PlannerSettings)
     ig: VolumetricSettings = setting(factory=VolumetricSettings)
+    reconstruction: FusionSettings = setting(factory=FusionSettings)
     seed: int = 0
     picture: bool = True
     page: bool = True
     out_dir: Path = field(kw_only=True)
 
     def __post_init__(self) -> None:
-        if (self.mesh is None) == (self.captures is None):
-            raise ConfigError(
-                "give exactly one input: mesh=<mesh file> (simulated captures) or "
-                "captures=<folder with views.json>"
-            )
+        # Exactly one input is the command's rule (PlanEntry.build): a Planner takes neither.
+        if self.mesh is not None and self.captures is not None:
+            raise ConfigError(INPUTS)
         if self.method not in PLANNABLE:
             why = "reads the ground truth" if self.method in METHODS else "is not registered"
             raise ConfigError(f"method={self.method!r} {why}; allowed: {', '.join(PLANNABLE)}")
@@ -209,6 +221,8 @@ class PlanSettings:
                 "candidates.*: the candidate limits apply to captures=<folder>; a mesh's episode "
                 "plays the whole viewspace (give a viewspace file of the reachable views)"
             )
+        if self.views is not None and self.mesh is not None:
+            raise ConfigError("views: selects captures of captures=<folder>, not a mesh's views")
         if self.save_captures and self.mesh is None:
             raise ConfigError("save_captures needs mesh=<mesh file>: it saves simulated views")
         if self.save_captures > self.n_views:
@@ -234,6 +248,8 @@ class PlanEntry(Entry):
         method becomes ``paths.checkpoints.<method>`` (whether it exists is the registry's
         business when the network is loaded: else the shipped weights)."""
         settings = super().build(cfg)
+        if settings.mesh is None and settings.captures is None:
+            raise ConfigError(INPUTS)
         if settings.checkpoint is None and settings.method in NETWORK_INPUTS:
             default = cfg["paths"]["checkpoints"].get(settings.method)
             if default:

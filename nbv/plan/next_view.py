@@ -1,305 +1,37 @@
 """The next view from a folder of captures (``python -m nbv.plan captures=...``), or a one-shot
-planner's whole remaining plan.
-
-The steps, each a function a stateful caller can call on its own: the captures are read and
-checked (:func:`nbv.plan.captures.read_captures`); the object is placed (:func:`place_object`:
-the ``object`` settings, a region of interest, ``views.json``'s, else estimated among its
-surroundings by :mod:`nbv.plan.object_estimate`); the candidates a robot cannot reach are
-dropped (:func:`limited_candidates`, :mod:`nbv.plan.candidates`); each capture is matched to the
-candidate it was taken from (within ``match_degrees``, seen from the object's centre) or joins
-the candidates as an extra visited view; and the registry's policy is called once on the
-captured state (:func:`nbv.policies.episode.captured_state`), whose record says what each view's
-missing pixels mean (:class:`nbv.policies.volumetric.SensedViews`).
+planner's whole remaining plan: the captures read and checked
+(:func:`nbv.plan.captures.read_captures`; ``views`` selects some), then one decision of a
+:class:`nbv.plan.decision.Decider` on them, the same as :class:`nbv.plan.planner.Planner` makes
+(the steps before the policy are :mod:`nbv.plan.placement`'s). The policy is the registry's, called
+on the captured state (:func:`nbv.policies.episode.captured_state`), whose record says what each
+view's missing pixels mean (:class:`nbv.policies.volumetric.SensedViews`).
 """
 
 from __future__ import annotations
 
-import dataclasses
-import logging
-import time
-
-import numpy as np
-
-from nbv.geometry.camera import Intrinsics
-from nbv.geometry.viewspace import angular_distances
-from nbv.geometry.viewspace_generators import up_rotation
-from nbv.plan.candidates import declared_plane, limit_candidates
-from nbv.plan.captures import Capture, CaptureError, check_views_see, read_captures
+from nbv.plan.captures import read_captures, select_views
 from nbv.plan.config import PlanSettings
-from nbv.plan.frame import ObjectFrame, candidate_poses, object_frame
-from nbv.plan.method import method_context, policy_rng, predicted_gains
-from nbv.plan.object_estimate import (
-    ObjectEstimate,
-    Plane,
-    estimate_object,
-    find_planes,
-    thinned,
+from nbv.plan.decision import Decider
+from nbv.plan.placement import (
+    limited_candidates,
+    match_views,
+    place_object,
+    planner_camera,
+    sensed_misses,
+    support_of,
+    up_vector,
 )
-from nbv.plan.result import VIEWSPACE, PlanResult
-from nbv.planning.occupancy import Misses
-from nbv.policies.episode import captured_state, stage_seconds
-from nbv.policies.registry import METHODS, NETWORK_INPUTS
-from nbv.policies.volumetric import SensedViews
-from nbv.utils.seeding import named_rng
+from nbv.plan.result import PlanResult
 
-log = logging.getLogger(__name__)
-
-
-def _subsample(points: np.ndarray, keep: int, rng: np.random.Generator) -> np.ndarray:
-    """A sorted random ``keep`` of the points (all when ``keep`` is 0 or more than there are),
-    as the dataset keeps a view's points."""
-    if 0 < keep < len(points):
-        return points[np.sort(rng.choice(len(points), keep, replace=False))]
-    return points
-
-
-def match_views(captured: np.ndarray, candidates: np.ndarray, degrees: float) -> list[int | None]:
-    """The viewspace view each capture was taken from, or None (an extra view).
-
-    Args:
-        captured: (C, 3) capture camera centres, normalised frame.
-        candidates: (V, 3) candidate camera centres, normalised frame.
-        degrees: the largest angle (at the origin) a match may be off.
-
-    Returns:
-        For each capture the nearest candidate within ``degrees`` not matched before, or None.
-    """
-    angles = angular_distances(captured, candidates)
-    taken: set[int] = set()
-    out: list[int | None] = []
-    for row in angles:
-        order = [int(v) for v in np.argsort(row, kind="stable") if row[v] <= degrees]
-        free = [v for v in order if v not in taken]
-        out.append(free[0] if free else None)
-        if free:
-            taken.add(free[0])
-    return out
-
-
-def up_vector(up: str) -> np.ndarray:
-    """(3,) the rig's up axis (``viewspace.up``) in the world frame."""
-    return up_rotation(up) @ np.array([0.0, 1.0, 0.0])
-
-
-def place_object(
-    settings: PlanSettings, captures: list[Capture], given: dict | None
-) -> tuple[ObjectFrame, str, ObjectEstimate | None]:
-    """The object's frame: the ``object`` settings (a sphere, or a region of interest), else the
-    folder's ``object``, else estimated (:func:`estimate_object`); every view checked to look at
-    it.
-
-    Returns:
-        ``(frame, source, estimate)`` (``source`` as :attr:`PlanResult.object_source`; the
-        estimate when one ran).
-
-    Raises:
-        CaptureError: the estimate found nothing (naming the settings to give), or a view does
-            not look at the object.
-    """
-    obj = settings.object
-    estimate = None
-    if obj.center is not None and obj.radius is not None:
-        source, center, radius = "object settings", obj.center, obj.radius
-    elif obj.box_sphere is not None:
-        source, (center, radius) = "region of interest", obj.box_sphere
-    elif given is not None:
-        source, center, radius = "views.json", given["center"], given["radius"]
-    else:
-        source = "estimated"
-        try:
-            estimate = estimate_object(
-                np.stack([c.pose for c in captures]), [c.points for c in captures],
-                up_vector(settings.viewspace.up), obj.estimate, settings.seed,
-            )  # fmt: skip
-        except ValueError as err:
-            raise CaptureError(f"{settings.captures}: {err}") from None
-        center, radius = estimate.center, estimate.radius
-        log.info("object estimated from the captures: centre %s, radius %.4g (%d of %d points; "
-                 "%d planes removed, support %s)", np.round(center, 4).tolist(), radius,
-                 estimate.counts["object"], estimate.counts["captured"], len(estimate.planes),
-                 "found" if estimate.support is not None else "none")  # fmt: skip
-        for warning in estimate.warnings:
-            log.warning("%s", warning)
-    frame = object_frame(settings, np.asarray(center, dtype=np.float64), float(radius))
-    check_views_see(captures, frame.center, frame.radius, settings.camera)
-    return frame, source, estimate
-
-
-def load_captures_and_frame(settings: PlanSettings) -> tuple[list[Capture], ObjectFrame, bool]:
-    """Read the captures and place the object (:func:`place_object`).
-
-    Returns:
-        ``(captures, frame, estimated)``.
-    """
-    captures, given = read_captures(settings.captures)
-    frame, source, _ = place_object(settings, captures, given)
-    return captures, frame, source == "estimated"
-
-
-def support_of(
-    settings: PlanSettings,
-    captures: list[Capture],
-    frame: ObjectFrame,
-    estimate: ObjectEstimate | None,
-) -> Plane | None:
-    """The support's plane the candidate limits read: declared, else the estimate's, else
-    (with a limit set) found in the captures below the object's centre; None without one."""
-    limits = settings.candidates
-    if limits.support is not None:
-        return declared_plane(limits.support)
-    if estimate is not None:
-        return estimate.support_plane
-    if not limits.active:
-        return None
-    reach = float(np.median(np.linalg.norm([c.pose[:3, 3] - frame.center for c in captures],
-                                           axis=1)))  # fmt: skip
-    est = settings.object.estimate
-    # Coarser than the estimate's thinning: a plane needs few points, and RANSAC's time grows
-    # with them.
-    points = thinned(np.concatenate([c.points for c in captures]), est.voxel or reach / 100)
-    cameras = np.stack([c.pose[:3, 3] for c in captures])
-    _, planes, support = find_planes(
-        points, frame.center, cameras, up_vector(settings.viewspace.up),
-        est.plane_distance or reach / 100, est, settings.seed,
-    )  # fmt: skip
-    return None if support is None else planes[support]
-
-
-def limited_candidates(
-    settings: PlanSettings, frame: ObjectFrame, support: Plane | None
-) -> tuple[np.ndarray, np.ndarray, dict | None]:
-    """The candidates a robot can use, normalised poses.
-
-    Returns:
-        ``(poses, kept, record)``: (K, 4, 4) the kept candidates' poses, (K,) their viewspace
-        indices, and :attr:`PlanResult.candidate_limits` (None when nothing limits them).
-    """
-    candidates = candidate_poses(settings.viewspace.directions(), frame, settings.viewspace.radius)
-    if not settings.candidates.active and support is None:
-        return candidates, np.arange(len(candidates)), None
-    world = frame.poses_to_world(candidates)[:, :3, 3]
-    try:
-        keep, by_reason = limit_candidates(world, frame.center, settings.candidates, support)
-    except ValueError as err:
-        raise CaptureError(f"{settings.captures}: {err}") from None
-    kept = np.flatnonzero(keep)
-    record = {
-        "dropped": int(len(candidates) - len(kept)),
-        "by_reason": by_reason,
-        "dropped_views": np.flatnonzero(~keep).tolist(),
-        "kept_views": kept.tolist(),
-        "support": None if support is None else support.record(),
-    }
-    log.info("candidates: %d of %d kept, %d dropped (%s)", len(kept), len(candidates),
-             record["dropped"], ", ".join(f"{k} {v}" for k, v in by_reason.items() if v)
-             or "none")  # fmt: skip
-    if len(kept) == 0:
-        raise CaptureError(
-            f"{settings.captures}: the candidate limits (candidates.*) drop all "
-            f"{len(candidates)} candidates"
-        )
-    return candidates[kept], kept, record
-
-
-def sensed_misses(captures: list[Capture], frame: ObjectFrame) -> list[Misses | None]:
-    """Each capture's :class:`Misses`, its range in the planners' normalised units."""
-    out: list[Misses | None] = []
-    for c in captures:
-        m = c.misses
-        if m is not None and m.reach is not None:
-            m = dataclasses.replace(m, reach=m.reach * frame.scale)
-        out.append(m)
-    return out
-
-
-def planner_camera(captures: list[Capture], default: Intrinsics) -> Intrinsics:
-    """The camera the planner simulates candidates with: the captures' depth camera when every
-    capture is a depth image taken with the same intrinsics, else ``default`` (the ``camera``
-    setting)."""
-    cameras = {c.intrinsics for c in captures}
-    if len(cameras) == 1 and None not in cameras:
-        return cameras.pop()
-    return default
+__all__ = [
+    "limited_candidates", "match_views", "place_object", "plan_captures", "planner_camera",
+    "sensed_misses", "support_of", "up_vector",
+]  # fmt: skip
 
 
 def plan_captures(settings: PlanSettings) -> PlanResult:
     """The next view (or a one-shot planner's remaining plan) from a folder of captures."""
     captures, given = read_captures(settings.captures)
-    frame, source, estimate = place_object(settings, captures, given)
-    camera = planner_camera(captures, settings.camera)
-    log.info("planner camera: %s", camera)
-    support = support_of(settings, captures, frame, estimate)
-    candidates, kept, limits = limited_candidates(settings, frame, support)
-    if (
-        limits is not None
-        and limits["dropped"]
-        and NETWORK_INPUTS.get(settings.method, "directions") != "directions"
-    ):
-        raise CaptureError(
-            f"{settings.captures}: the candidate limits drop {limits['dropped']} views, and "
-            f"{settings.method} scores only the views of its whole viewspace; use a method that "
-            "reads any candidates, or no candidates.* limits"
-        )
-    n = len(candidates)
-    captured_poses = frame.poses_to_normalised(np.stack([c.pose for c in captures]))
-    matched = match_views(captured_poses[:, :3, 3], candidates[:, :3, 3], settings.match_degrees)
-    extras = [i for i, m in enumerate(matched) if m is None]
-    if (
-        extras
-        and settings.method in NETWORK_INPUTS
-        and NETWORK_INPUTS[settings.method] != "directions"
-    ):
-        raise CaptureError(
-            f"{captures[extras[0]].file}: no viewspace view within {settings.match_degrees} "
-            f"degrees, and {settings.method} scores only the views of its viewspace"
-        )
-    index = [m if m is not None else n + extras.index(i) for i, m in enumerate(matched)]
-    if len(captures) >= settings.n_views:
-        raise ValueError(
-            f"n_views={settings.n_views}: the captures already hold {len(captures)} views; raise "
-            "n_views to plan more"
-        )
-    poses = np.concatenate([candidates, captured_poses[extras]])
-    parts = [np.zeros((0, 3), np.float32)] * len(poses)
-    misses: list[Misses | None] = [None] * len(poses)
-    for i, (c, m) in enumerate(zip(captures, sensed_misses(captures, frame), strict=True)):
-        rng = named_rng(settings.seed, "plan", "capture", i)
-        pts = _subsample(frame.points_to_normalised(c.points), settings.points_per_view, rng)
-        parts[index[i]] = pts.astype(np.float32)
-        poses[index[i]] = captured_poses[i]
-        misses[index[i]] = m
-    state = captured_state(poses, parts, index, settings.points_per_view, VIEWSPACE)
-    # A sensor's views: what a missing pixel means is the captures' declaration, not the
-    # dataset's "background is free" (points subsampled above create no misses either).
-    state.model.views[VIEWSPACE] = SensedViews.of(state.model.views[VIEWSPACE], misses)
-    state.model.source_path = str(settings.captures)
-    ctx = method_context(settings, camera, n)
-    policy = METHODS[settings.method].build(ctx, policy_rng(settings.seed, settings.method))
-    t0 = time.perf_counter()
-    choice = policy(state)
-    seconds = time.perf_counter() - t0
-    chosen = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
-    gains, unit = predicted_gains(policy, chosen)
-    files = [
-        {"file": str(c.file), "view": int(m) if m is not None else None, "points": len(c.points),
-         "no_return": c.no_return,
-         "max_range": None if c.misses is None else c.misses.reach}
-        for c, m in zip(captures, matched, strict=True)
-    ]  # fmt: skip
-    notes = list(policy.notes)
-    if extras:
-        notes.append(f"{len(extras)} captures off the viewspace joined the plan as extra views")
-    if estimate is not None:
-        notes.extend(estimate.warnings)
-    if limits is not None and limits["dropped"]:
-        notes.append(
-            f"{limits['dropped']} of {limits['dropped'] + n} candidates dropped by candidates.* "
-            "(plan indices are of the kept ones: candidate_limits.kept_views maps them)"
-        )
-    return PlanResult(
-        frame=frame, model=state.model, n_candidates=n, visited=index, chosen=chosen, gains=gains,
-        gain_unit=unit, decisions=[seconds], stages=stage_seconds(policy),
-        captured_files=files, notes=notes, frame_estimated=source == "estimated", camera=camera,
-        object_source=source, estimate=None if estimate is None else estimate.record(),
-        candidate_limits=limits,
-    )  # fmt: skip
+    if settings.views is not None:
+        captures = select_views(captures, settings.views, settings.captures)
+    return Decider(settings, captures, given).decide()

@@ -14,7 +14,11 @@
   object ``estimate`` with its inputs and counts when one ran), ``candidate_limits`` (captures
   input, when candidates were limited: how many were dropped and why, and the viewspace index of
   each kept candidate), ``camera`` (the planner's), ``timings`` (seconds of each decision and of
-  the policy's stages), ``notes`` and ``settings``.
+  the policy's stages), ``notes`` and ``settings``;
+* ``reconstruction``: the depth views fused into ``reconstruction.ply`` (the file, the views,
+  the voxel, the vertex and triangle counts; mesh input: ``scores`` against the mesh:
+  accuracy, completeness, Chamfer distance, precision, recall and F-score at ``eps`` and 2
+  ``eps``, world units), or null when no view is a depth image.
 """
 
 from __future__ import annotations
@@ -113,6 +117,7 @@ def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
         "camera": _jsonable(result.camera),
         "timings": {"decisions": result.decisions, "stages": result.stages},
         "notes": result.notes,
+        "reconstruction": None if result.reconstruction is None else result.reconstruction.record(),
         "candidates": [_pose_entry(v, world[v]) for v in range(result.n_candidates)],
         "settings": settings_record(settings),
     }  # fmt: skip
@@ -137,6 +142,24 @@ def write_cloud(path: Path, points: np.ndarray) -> None:
         tmp.unlink(missing_ok=True)
 
 
+def write_mesh(path, vertices: np.ndarray, triangles: np.ndarray) -> None:
+    """A triangle mesh as a binary PLY (Open3D), world frame; whole or not at all. (Open3D
+    refuses to write a mesh without vertices: skip an empty reconstruction before calling.)"""
+    import open3d as o3d
+
+    mesh = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(np.asarray(vertices, np.float64)),
+        o3d.utility.Vector3iVector(np.asarray(triangles, np.int32)),
+    )
+    tmp = path.with_name(f".{path.stem}.tmp.ply")  # Open3D picks the format by the suffix
+    try:
+        if not o3d.io.write_triangle_mesh(str(tmp), mesh):
+            raise OSError(f"{path}: Open3D could not write the mesh")
+        fsync_replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
 def hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(K, 3) vertices and (F, 3) triangles of the cloud's convex hull (empty for a flat or
     tiny cloud, which has none)."""
@@ -150,6 +173,21 @@ def hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return hull.points[used], faces.reshape(-1, 3).astype(np.int64)
 
 
+#: A point this much beyond the object's sphere (in its radii) is its surroundings in the
+#: pictures: the sphere holds the object, and noise sits on its surface.
+SPHERE_MARGIN = 1.05
+
+
+def in_region(settings: PlanSettings, result: PlanResult, cloud: np.ndarray) -> np.ndarray:
+    """(N,) bool: the cloud's world points inside the object's region (``object.box_*`` when
+    given, else its sphere): the object, drawn in colour; the rest is its surroundings."""
+    obj = settings.object
+    if obj.box_min is not None and obj.box_max is not None:
+        return np.all((cloud >= obj.box_min) & (cloud <= obj.box_max), axis=1)
+    distance = np.linalg.norm(cloud - result.frame.center, axis=1)
+    return distance <= SPHERE_MARGIN * result.frame.radius
+
+
 def write_outputs(settings: PlanSettings, result: PlanResult) -> list[Path]:
     """Write the plan's files into ``settings.out_dir``; returns their paths."""
     out = Path(settings.out_dir)
@@ -161,22 +199,29 @@ def write_outputs(settings: PlanSettings, result: PlanResult) -> list[Path]:
     written = []
     write_cloud(out / "cloud.ply", cloud)
     written.append(out / "cloud.ply")
-    vertices, faces = hull_mesh(cloud)
-    name = Path(settings.mesh or settings.captures).name
+    fused = result.reconstruction
+    if fused is not None and len(fused.triangles):
+        write_mesh(out / "reconstruction.ply", fused.vertices, fused.triangles)
+        written.append(out / "reconstruction.ply")
+    inside = in_region(settings, result, cloud)
+    region, surroundings = cloud[inside], cloud[~inside]
+    vertices, faces = hull_mesh(region)
+    focus = (frame.center, frame.radius) if len(surroundings) else None
+    name = Path(settings.mesh or settings.captures or "views").name
     title = f"{settings.method} on {name}: next view {result.chosen[0]}, plan {result.chosen}"
     if settings.picture:
         from nbv.plan.picture import draw_plan
 
-        draw_plan(out / "plan.png", cloud, vertices, faces, world, result.visited,
-                  result.chosen, title, frame.up)  # fmt: skip
+        draw_plan(out / "plan.png", region, vertices, faces, world, result.visited,
+                  result.chosen, title, frame.up, surroundings, focus)  # fmt: skip
         written.append(out / "plan.png")
     if settings.page:
         from nbv.plan.page import write_plan_page
 
         write_plan_page(
-            out / "plan.html", points=cloud.astype(np.float32), hull_vertices=vertices,
+            out / "plan.html", points=region.astype(np.float32), hull_vertices=vertices,
             hull_faces=faces, candidates=world, chosen=result.chosen, visited=result.visited,
-            title=title, up=frame.up.lstrip("-"),
+            title=title, up=frame.up.lstrip("-"), surroundings=surroundings.astype(np.float32),
         )  # fmt: skip
         written.append(out / "plan.html")
     # plan.json last: its presence says the run finished.

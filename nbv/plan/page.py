@@ -29,6 +29,7 @@ MAX_PAGE_POINTS = 20_000
 
 # Fixed colours, so a screenshot can be checked for what was drawn (tests/test_plan_page.py).
 POINT_COLOUR = "#1f77b4"
+SURROUNDINGS_COLOUR = "#b0b0b0"  # the table, walls and clutter: there, but not the object
 HULL_COLOUR = "#2ca02c"
 CANDIDATE_COLOUR = "#9a9a9a"
 VISITED_COLOUR = "#9467bd"
@@ -133,6 +134,7 @@ def build_plan_figure(
     title: str,
     up: str = "y",
     max_points: int = MAX_PAGE_POINTS,
+    surroundings: np.ndarray | None = None,
 ) -> go.Figure:
     """The plotly figure of a plan (pure: no files, no browser).
 
@@ -150,9 +152,12 @@ def build_plan_figure(
         up: the world axis kept up on screen, one of ``UP_AXES`` ("x", "y", "z", "-x", "-y",
             "-z").
         max_points: cap on drawn cloud points.
+        surroundings: (M, 3) captured points outside the object's region (a table, walls,
+            clutter), drawn faint grey and left out of the frustums' scale; None or empty: none.
 
     Traces, in order (names are the legend entries): "cloud", "hull", "candidates",
-    "visited", "chosen", "order" (the path and the numbers at the chosen camera centres).
+    "visited", "chosen", "order" (the path and the numbers at the chosen camera centres), and
+    "surroundings" last when there are any.
 
     Raises:
         ValueError: one message naming the argument, the bad value and what is allowed.
@@ -221,6 +226,16 @@ def build_plan_figure(
                 showlegend=False, hovertext=[f"view {v}" for v in ids], hoverinfo="text",
             )
         )  # fmt: skip
+    if surroundings is not None and len(surroundings):
+        rest = subsample_evenly(
+            _check_array("surroundings", surroundings, (None, 3)).astype(np.float32), max_points
+        )
+        traces_rest = go.Scatter3d(
+            x=rest[:, 0], y=rest[:, 1], z=rest[:, 2], mode="markers", name="surroundings",
+            marker={"size": 1.5, "color": SURROUNDINGS_COLOUR, "opacity": 0.3}, hoverinfo="skip",
+        )  # fmt: skip
+    else:
+        traces_rest = None
     path = centres[chosen_ids]
     traces.append(
         go.Scatter3d(
@@ -234,6 +249,8 @@ def build_plan_figure(
         )
     )  # fmt: skip
 
+    if traces_rest is not None:
+        traces.append(traces_rest)
     x, y, z = UP_AXES[up]
     figure = go.Figure(data=traces)
     figure.update_layout(
@@ -261,6 +278,7 @@ def write_plan_page(
     visited: Sequence[int],
     title: str,
     up: str = "y",
+    surroundings: np.ndarray | None = None,
 ) -> None:
     """Write the plan's self-contained interactive page to ``path`` (whole or not at all).
 
@@ -279,6 +297,7 @@ def write_plan_page(
         visited=visited,
         title=title,
         up=up,
+        surroundings=surroundings,
     )
     html = figure.to_html(
         include_plotlyjs=True,

@@ -1,4 +1,8 @@
-"""``plan.png``: the captured cloud, its convex hull and the cameras, drawn with matplotlib."""
+"""``plan.png``: the captured cloud, its convex hull and the cameras, drawn with matplotlib.
+
+A scene with a table or clutter has points outside the object's region: those are drawn faint
+grey (``surroundings``), and the axes are framed on the object's region and the candidates, so
+that the picture shows the object, not the room."""
 
 from __future__ import annotations
 
@@ -22,6 +26,8 @@ def draw_plan(
     chosen: list[int],
     title: str,
     up: str = "y",
+    surroundings: np.ndarray | None = None,
+    focus: tuple[np.ndarray, float] | None = None,
 ) -> None:
     """Draw a plan to a PNG (whole or not at all).
 
@@ -34,6 +40,10 @@ def draw_plan(
         chosen: planned views in order, drawn orange and numbered from 1; the rest grey.
         title: the picture's title.
         up: the world axis drawn vertical (``x``, ``y`` or ``z``; a sign is ignored).
+        surroundings: (M, 3) captured points outside the object's region, drawn faint grey;
+            None: none.
+        focus: ``(centre (3,), radius)`` of the object's region, world frame: the axes hold it
+            and the candidates (None: the candidates only).
     """
     import matplotlib
 
@@ -44,12 +54,17 @@ def draw_plan(
     # matplotlib's vertical axis.
     order = {"x": [1, 2, 0], "y": [2, 0, 1], "z": [0, 1, 2]}[up.lstrip("-")]
     points, hull_vertices = np.asarray(points)[:, order], np.asarray(hull_vertices)[:, order]
+    rest = np.zeros((0, 3)) if surroundings is None else np.asarray(surroundings)[:, order]
     candidates = np.asarray(candidates).copy()
     candidates[:, :3, :] = candidates[:, order, :]
     fig = plt.figure(figsize=(7, 7))
     ax = fig.add_subplot(projection="3d")
     step = max(1, len(points) // MAX_POINTS)
     p = points[::step]
+    if len(rest):
+        r = rest[:: max(1, len(rest) // MAX_POINTS)]
+        ax.scatter(r[:, 0], r[:, 1], r[:, 2], s=0.3, c="#b0b0b0", alpha=0.5,
+                   label="surroundings")  # fmt: skip
     ax.scatter(p[:, 0], p[:, 1], p[:, 2], s=0.5, c="#1f77b4", label="cloud")
     if len(hull_faces):
         ax.plot_trisurf(*np.asarray(hull_vertices).T, triangles=hull_faces, color="#2ca02c",
@@ -69,6 +84,10 @@ def draw_plan(
     for k, v in enumerate(chosen, start=1):
         ax.text(*centres[v], f" {k}", color="#d62728", fontsize=9)
     lo, hi = centres.min(axis=0), centres.max(axis=0)
+    if focus is not None:
+        # Framed on the object's region and the cameras: the room around them is cut off.
+        middle, radius = np.asarray(focus[0])[order], float(focus[1])
+        lo, hi = np.minimum(lo, middle - radius), np.maximum(hi, middle + radius)
     mid, half = 0.5 * (lo + hi), 0.55 * float((hi - lo).max() or 1.0)
     ax.set_xlim(mid[0] - half, mid[0] + half)
     ax.set_ylim(mid[1] - half, mid[1] + half)

@@ -20,6 +20,35 @@ VIEWSPACE = "plan"
 
 
 @dataclass
+class Reconstruction:
+    """The fused mesh and what it was made from.
+
+    Attributes:
+        vertices: (N, 3) float64 world points; triangles: (M, 3) int64.
+        views: the fused views (view indices of the plan).
+        voxel: the voxel edge used, world units.
+        scores: mesh input: :func:`mesh_scores` against the mesh (world units); else None.
+    """
+
+    vertices: np.ndarray
+    triangles: np.ndarray
+    views: list[int]
+    voxel: float
+    scores: dict[str, float] | None = None
+
+    def record(self, file: str = "reconstruction.ply") -> dict:
+        """``plan.json``'s ``reconstruction``."""
+        return {
+            "file": file if len(self.triangles) else None,
+            "views": self.views,
+            "voxel": self.voxel,
+            "vertices": len(self.vertices),
+            "triangles": len(self.triangles),
+            "scores": self.scores,
+        }
+
+
+@dataclass
 class PlanResult:
     """What one plan found, in the planners' normalised frame unless said otherwise.
 
@@ -47,6 +76,8 @@ class PlanResult:
             ``by_reason``, ``dropped_views`` and ``kept_views`` (viewspace indices; the plan's
             candidate ``i`` is viewspace view ``kept_views[i]``), ``support`` (the plane used, or
             None); None when nothing limits them.
+        reconstruction: the views fused into a mesh (:mod:`nbv.plan.reconstruction`), when the
+            command made one.
     """
 
     frame: ObjectFrame
@@ -66,6 +97,7 @@ class PlanResult:
     object_source: str = ""
     estimate: dict | None = None
     candidate_limits: dict | None = None
+    reconstruction: Reconstruction | None = None
 
     @property
     def cloud(self) -> np.ndarray:

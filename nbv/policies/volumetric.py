@@ -126,6 +126,42 @@ class InformationGainPolicy:
             )
         return self.traced[key]
 
+    def retrace_candidates(self, poses: np.ndarray, previous: np.ndarray) -> None:
+        """The warm path of a planner whose candidate poses change a few rows at a time (a
+        captured view's own pose replaces its candidate's, an extra view is appended): put the
+        rays' voxels of ``poses`` into ``traced``, where :meth:`candidate_voxels` finds them,
+        tracing only the rows that differ from ``previous`` (traced before; its entry is
+        dropped). Equal to :meth:`candidate_voxels` of ``poses`` up to the width of the -1
+        padding, which no gain reads.
+
+        Args:
+            poses: (V, 4, 4) the candidates' poses now.
+            previous: (W, 4, 4) those of the last decision, W <= V (rows beyond W are new).
+        """
+        poses = np.asarray(poses, dtype=np.float64)
+        previous = np.asarray(previous, dtype=np.float64)
+        meta = (self.intrinsics, self.settings.columns, self.settings.occupancy())
+        if (poses.tobytes(), *meta) in self.traced:
+            return
+        old = self.traced.pop((previous.tobytes(), *meta), None)
+        if old is None or len(previous) > len(poses):
+            self.candidate_voxels(poses)
+            return
+        n = len(previous)
+        changed = np.flatnonzero(~np.all(poses[:n] == previous, axis=(1, 2)))
+        changed = np.concatenate([changed, np.arange(n, len(poses))])
+        if len(changed) == 0:  # equal values in other bytes (a -0.0 for a 0.0)
+            self.traced[(poses.tobytes(), *meta)] = old
+            return
+        fresh = candidate_voxels(poses[changed], self.intrinsics, self.settings.columns,
+                                 self.settings.occupancy())  # fmt: skip
+        out = np.full((len(poses), old.shape[1], max(old.shape[2], fresh.shape[2])), -1,
+                      dtype=old.dtype)  # fmt: skip
+        out[:n, :, : old.shape[2]] = old
+        out[changed] = -1
+        out[changed, :, : fresh.shape[2]] = fresh
+        self.traced[(poses.tobytes(), *meta)] = out
+
     def _gains(self, state: EpisodeState) -> tuple[np.ndarray, np.ndarray]:
         """``(gains, score)``, each (V,): every unvisited view's information gain (0 for the
         visited ones) on the map of the captured views, and the score it is picked by (the gain,
