@@ -82,7 +82,8 @@ class RandomCloudNetwork(_Wrapper):
         return NetworkRequest(self.inner, cloud, state.view_state)
 
     def __call__(self, state: EpisodeState) -> int:
-        return NetworkRequest.answer_all([self.request(state)])[0]
+        asked = self.request(state)
+        return self.inner.decide(asked.cloud, asked.shown, visited=asked.visited)
 
 
 @dataclass
@@ -100,7 +101,8 @@ class PermutedStateNetwork(_Wrapper):
         return NetworkRequest(self.inner, state.cloud(), shown, state.view_state)
 
     def __call__(self, state: EpisodeState) -> int:
-        return NetworkRequest.answer_all([self.request(state)])[0]
+        asked = self.request(state)
+        return self.inner.decide(asked.cloud, asked.shown, visited=asked.visited)
 
 
 @dataclass

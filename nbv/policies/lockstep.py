@@ -167,7 +167,7 @@ def run_lockstep(
         active = [run for run in running if not run.done]
         if not active:
             break
-        batches: dict[tuple[type, int], list[tuple[_Running, Request, float]]] = {}
+        batches: dict[tuple[type, int, int], list[tuple[_Running, Request, float]]] = {}
         for run in active:
             if run.queue:
                 continue
@@ -175,8 +175,9 @@ def run_lockstep(
             t0 = time.perf_counter()
             if isinstance(policy, Batchable):
                 request = policy.request(run.state)
-                # Batched by network: the fresh() copies of one checkpoint share its model.
-                key = (type(request), id(request.policy.model))
+                # Batched by network (the fresh() copies of one checkpoint share its model) and
+                # by the viewspace's size (a forward pass scores one V).
+                key = (type(request), id(request.policy.model), len(run.state.view_state))
                 batches.setdefault(key, []).append((run, request, time.perf_counter() - t0))
             else:
                 choice = policy(run.state)
