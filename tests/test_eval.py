@@ -112,6 +112,7 @@ def test_full_run_writes_every_output(full_run):
         "viewspaces", "start_views", "n_views", "checkpoints", "hull", "ig", "ig_scorer",
         "checks", "disturb_viewspaces", "disturb_start_views", "disturb_radius", "noise_sigmas",
         "random_repeats", "seed", "threads", "workers", "progress", "plots", "batched",
+        "precision",
     ]  # fmt: skip
     assert list(data["settings"]["prepare"]) == [
         "dir", "backend", "blender", "width", "height", "focal", "n_gt", "eps",

@@ -259,6 +259,11 @@ class EvalSettings:
         batched: run each method's episodes of a model in lockstep, a network deciding for all
             of them in one batched forward pass (:mod:`nbv.policies.lockstep`); false: one
             episode after another. Both give the same episodes; batched is faster.
+        precision: the PCNBV networks' arithmetic: null = each checkpoint's (one trained in
+            bfloat16, as the shipped weights, runs in bfloat16 where the CPU has it natively,
+            AMX or AVX512-BF16, else in float32); ``fp32`` runs float32 everywhere (what an
+            AVX2-only CPU runs: to time or reproduce such a machine), ``bf16`` and ``auto`` as
+            :mod:`nbv.models.precision` defines them.
     """
 
     run: str = field(kw_only=True)
@@ -290,6 +295,10 @@ class EvalSettings:
     progress: bool = True
     plots: bool = True
     batched: bool = True
+    precision: str | None = setting(
+        None, check=lambda v: v is None or v in ("auto", "fp32", "bf16"),
+        allowed="null, auto, fp32 or bf16",
+    )  # fmt: skip
 
     @property
     def out_dir(self) -> Path:

@@ -241,7 +241,7 @@ def load_networks(
             continue
         path = settings.checkpoints[method]
         try:
-            policy = METHODS[method].load(path, n_views)
+            policy = METHODS[method].load(path, n_views, settings.precision)
         except CheckpointError as err:
             skipped[method] = str(err)
             continue

@@ -122,20 +122,25 @@ class Method:
                  shipped)  # fmt: skip
         return shipped
 
-    def load(self, path: str | Path, n_views: int) -> NetworkPolicy | ConditionedPolicy:
+    def load(
+        self, path: str | Path, n_views: int | None, precision: str | None = None
+    ) -> NetworkPolicy | ConditionedPolicy:
         """The network policy of the checkpoint at ``path`` (no fallback: see :meth:`weights`).
 
         Args:
             path: a checkpoint of ``python -m train`` (points, signature) or of
                 ``python -m train.conditioned`` (directions).
-            n_views: the viewspace's size (a PCNBV network has one output per view).
+            n_views: the viewspace's size (a PCNBV network has one output per view); None:
+                any.
+            precision: a PCNBV network's arithmetic (:data:`nbv.models.precision.PRECISIONS`);
+                None: the checkpoint's (bfloat16 runs where the CPU has it natively).
 
         Raises:
             nbv.models.checkpoints.CheckpointError: the file is not a usable checkpoint.
         """
         if self.network_input == "directions":
             return ConditionedPolicy.from_checkpoint(path)
-        return NetworkPolicy.from_checkpoint(path, n_views=n_views)
+        return NetworkPolicy.from_checkpoint(path, n_views=n_views, precision=precision)
 
 
 def _hull_policy(
