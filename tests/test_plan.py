@@ -22,7 +22,7 @@ from nbv.geometry.viewspace import original_viewspace
 from nbv.geometry.viewspace_generators import rings
 from nbv.plan.config import ENTRY, PLANNABLE, ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.frame import ObjectFrame, candidate_poses, object_frame
-from nbv.plan.next_view import match_views
+from nbv.plan.placement import match_views
 from nbv.policies.registry import METHODS
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,8 +16,9 @@ from nbv.plan.candidates import REASONS, CandidateSettings, limit_candidates
 from nbv.plan.captures import read_captures, write_captures
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.frame import ObjectFrame
-from nbv.plan.next_view import plan_captures, sensed_misses
+from nbv.plan.next_view import plan_captures
 from nbv.plan.object_estimate import Plane
+from nbv.plan.placement import sensed_misses
 from nbv.planning.occupancy import FREE, OCCUPIED, UNKNOWN
 from nbv.planning.settings import VolumetricSettings
 from nbv.policies.episode import captured_state

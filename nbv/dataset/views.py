@@ -11,6 +11,7 @@ import numpy as np
 
 from nbv.dataset.records import ViewData, offsets_of
 from nbv.geometry.camera import Intrinsics, backproject
+from nbv.geometry.clouds import random_subset
 from nbv.geometry.hull import hull_vertices
 from nbv.geometry.scores import coverage_bits
 from nbv.render.job import RenderError
@@ -53,9 +54,7 @@ def view_data(
         # The one coverage test of the project (the evaluator and the planner use it too).
         bits.append(coverage_bits([points], gt_points, eps)[0])
         hulls.append(hull_vertices(points).astype(np.float32))
-        if 0 < points_per_view < len(points):
-            points = points[np.sort(rng.choice(len(points), points_per_view, replace=False))]
-        kept.append(points.astype(np.float32))
+        kept.append(random_subset(points, points_per_view, rng).astype(np.float32))
     if not any(len(p) for p in kept):
         raise RenderError("empty render: no view shows anything of the object")
     return ViewData(

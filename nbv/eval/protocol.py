@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from nbv.dataset.records import ModelData
-from nbv.policies.episode import Episode, run_episode, stage_seconds
+from nbv.policies.episode import Episode, stage_seconds
 from nbv.utils.seeding import named_rng
 
 
@@ -89,23 +89,6 @@ def episode_timings(policy, decision_times: list[float]) -> dict[str, float]:
     out["total"] = float(np.sum(decision_times))
     out["online"] = out["total"] - out.get("simulation", 0.0)
     return out
-
-
-def run_record(
-    model: ModelData,
-    viewspace: str,
-    start: int,
-    method: str,
-    policy,
-    dataset: str,
-    n_views: int,
-    check: str | None = None,
-    repeat: int = 0,
-) -> EpisodeRecord:
-    """Run one episode of ``policy`` and record it."""
-    episode = run_episode(model, viewspace, start, policy, n_views=n_views)
-    return episode_record(model, viewspace, start, method, policy, dataset, episode, check,
-                          repeat)  # fmt: skip
 
 
 def episode_record(

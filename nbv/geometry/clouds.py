@@ -31,3 +31,12 @@ def farthest_points(points: np.ndarray, n: int) -> np.ndarray:
     height = min(7, int(np.log2(len(points))))
     coords = np.ascontiguousarray(points, dtype=np.float32)
     return points[fpsample.bucket_fps_kdline_sampling(coords, n, height, start_idx=0)]
+
+
+def random_subset(points: np.ndarray, keep: int, rng: np.random.Generator) -> np.ndarray:
+    """A seeded random ``keep`` of the ``(N, 3)`` points, in their order (all of them when
+    ``keep`` is 0 or not below N): how a dataset keeps a view's points (``points_per_view``),
+    and how the planner keeps a capture's."""
+    if 0 < keep < len(points):
+        return points[np.sort(rng.choice(len(points), keep, replace=False))]
+    return points

@@ -21,13 +21,13 @@ import time
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics
+from nbv.geometry.clouds import random_subset
 from nbv.plan.captures import Capture, CaptureError, check_views_see
 from nbv.plan.config import PlanSettings
 from nbv.plan.frame import ObjectFrame
 from nbv.plan.method import method_context, policy_rng, predicted_gains
 from nbv.plan.object_estimate import Plane
 from nbv.plan.placement import (
-    _subsample,
     limited_candidates,
     match_views,
     place_object,
@@ -140,7 +140,7 @@ class Decider:
         rng = named_rng(settings.seed, "plan", "capture", i)
         # Subsampled first (the draw reads only the count): a 640 x 480 view's 300k points are
         # not all normalised to keep 2048 of them.
-        points = frame.points_to_normalised(_subsample(capture.points, settings.points_per_view,
+        points = frame.points_to_normalised(random_subset(capture.points, settings.points_per_view,
                                                        rng))  # fmt: skip
         self.parts[index] = points.astype(np.float32)
         (self.misses[index],) = sensed_misses([capture], frame)

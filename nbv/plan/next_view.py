@@ -12,21 +12,7 @@ from __future__ import annotations
 from nbv.plan.captures import read_captures, select_views
 from nbv.plan.config import PlanSettings
 from nbv.plan.decision import Decider
-from nbv.plan.placement import (
-    limited_candidates,
-    match_views,
-    place_object,
-    planner_camera,
-    sensed_misses,
-    support_of,
-    up_vector,
-)
 from nbv.plan.result import PlanResult
-
-__all__ = [
-    "limited_candidates", "match_views", "place_object", "plan_captures", "planner_camera",
-    "sensed_misses", "support_of", "up_vector",
-]  # fmt: skip
 
 
 def plan_captures(settings: PlanSettings) -> PlanResult:

@@ -127,22 +127,27 @@ def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
     return record
 
 
-def write_cloud(path: Path, points: np.ndarray) -> None:
-    """The accumulated cloud as a binary PLY (Open3D), world frame."""
-    import open3d as o3d
-
-    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
-    # Open3D picks the format by the suffix, so the temporary file ends in .ply too.
+def _write_ply(path: Path, write, what: str) -> None:
+    """Write a PLY with Open3D's ``write(file) -> ok``, whole or not at all. Open3D picks the
+    format by the suffix, so the temporary file ends in .ply too."""
     tmp = path.with_name(f".{path.stem}.tmp.ply")
     try:
-        if not o3d.io.write_point_cloud(str(tmp), cloud):
-            raise OSError(f"{path}: Open3D could not write the cloud")
+        if not write(str(tmp)):
+            raise OSError(f"{path}: Open3D could not write the {what}")
         fsync_replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
 
 
-def write_mesh(path, vertices: np.ndarray, triangles: np.ndarray) -> None:
+def write_cloud(path: Path, points: np.ndarray) -> None:
+    """The accumulated cloud as a binary PLY (Open3D), world frame."""
+    import open3d as o3d
+
+    cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
+    _write_ply(path, lambda file: o3d.io.write_point_cloud(file, cloud), "cloud")
+
+
+def write_mesh(path: Path, vertices: np.ndarray, triangles: np.ndarray) -> None:
     """A triangle mesh as a binary PLY (Open3D), world frame; whole or not at all. (Open3D
     refuses to write a mesh without vertices: skip an empty reconstruction before calling.)"""
     import open3d as o3d
@@ -151,13 +156,7 @@ def write_mesh(path, vertices: np.ndarray, triangles: np.ndarray) -> None:
         o3d.utility.Vector3dVector(np.asarray(vertices, np.float64)),
         o3d.utility.Vector3iVector(np.asarray(triangles, np.int32)),
     )
-    tmp = path.with_name(f".{path.stem}.tmp.ply")  # Open3D picks the format by the suffix
-    try:
-        if not o3d.io.write_triangle_mesh(str(tmp), mesh):
-            raise OSError(f"{path}: Open3D could not write the mesh")
-        fsync_replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    _write_ply(path, lambda file: o3d.io.write_triangle_mesh(file, mesh), "mesh")
 
 
 def hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -34,14 +34,6 @@ from nbv.planning.occupancy import Misses
 log = logging.getLogger(__name__)
 
 
-def _subsample(points: np.ndarray, keep: int, rng: np.random.Generator) -> np.ndarray:
-    """A sorted random ``keep`` of the points (all when ``keep`` is 0 or more than there are),
-    as the dataset keeps a view's points."""
-    if 0 < keep < len(points):
-        return points[np.sort(rng.choice(len(points), keep, replace=False))]
-    return points
-
-
 def match_views(
     captured: np.ndarray, candidates: np.ndarray, degrees: float, taken: set[int] | None = None
 ) -> list[int | None]:
