@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from nbv.dataset.records import ModelData
-from nbv.eval.tables import paired_difference
+from nbv.eval.tables import episode_means, paired_from_means
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.policies.lockstep import Batchable, NetworkRequest, Request
@@ -207,10 +207,11 @@ def auc_changes(records: list, seed: int = 0) -> list[dict]:
         ``sigma`` (the position noise, None for the other checks).
     """
     keys = sorted({(r.check, r.method, r.dataset, r.viewspace) for r in records if r.check})
+    means = episode_means(records)
     rows = []
     for check, method, dataset, viewspace in keys:
-        change = paired_difference(
-            records, (method, None), (method, check), dataset, viewspace, seed
+        change = paired_from_means(
+            means, (dataset, viewspace, method, None), (dataset, viewspace, method, check), seed
         )
         if change is None:
             continue

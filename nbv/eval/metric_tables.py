@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nbv.eval.metrics import REACH_FRACTIONS
-from nbv.eval.tables import fmt, method_rank
+from nbv.eval.tables import fmt, method_rank, repeat_mean
 from nbv.policies.registry import RANDOM, SPREAD
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean
@@ -92,22 +92,22 @@ def episode_values(records: list, n_views: int) -> dict[tuple, dict[tuple[str, i
     for group, episodes in by.items():
         out[group] = {}
         for episode, rs in episodes.items():
-            row = {k: np.mean([_number(r.metrics.get(k)) for r in rs]) for k in MEANS}
+            row = {k: repeat_mean([_number(r.metrics.get(k)) for r in rs]) for k in MEANS}
             for n in REACH_FRACTIONS:
                 got = [r.metrics.get(f"views_to_{n}") for r in rs]
-                row[f"views_to_{n}"] = np.mean([n_views + 1 if v is None else v for v in got])
+                row[f"views_to_{n}"] = repeat_mean([n_views + 1 if v is None else v for v in got])
                 reached = [v for v in got if v is not None]
-                row[f"reached_{n}"] = float(np.mean(reached)) if reached else float("nan")
-                row[f"censored_{n}"] = float(np.mean([v is None for v in got]))
+                row[f"reached_{n}"] = repeat_mean(reached) if reached else float("nan")
+                row[f"censored_{n}"] = repeat_mean([v is None for v in got])
             decisions = [max(1, len(r.decision_times)) for r in rs]
-            row["decisions"] = float(np.mean(decisions))
+            row["decisions"] = repeat_mean(decisions)
             for s in DECISION_STAGES:
-                row[f"stage_{s}"] = float(
-                    np.mean([r.timings.get(s, 0.0) / d for r, d in zip(rs, decisions, strict=True)])
+                row[f"stage_{s}"] = repeat_mean(
+                    [r.timings.get(s, 0.0) / d for r, d in zip(rs, decisions, strict=True)]
                 )
             for k, name in (("ties", "ties"), ("decisions", "tie_decisions")):
                 have = [r.counts[k] for r in rs if k in r.counts]
-                row[name] = float(np.mean(have)) if have else float("nan")
+                row[name] = repeat_mean(have) if have else float("nan")
             out[group][episode] = row
     return out
 

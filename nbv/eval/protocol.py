@@ -9,7 +9,7 @@ start view, so a result does not depend on which other episodes ran.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -65,8 +65,9 @@ class EpisodeRecord:
     metrics: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        """Plain JSON types; NaN becomes None."""
-        out = asdict(self)
+        """Plain JSON types; NaN becomes None. Shallow: the lists and dicts are the record's own
+        (``dataclasses.asdict``'s deep copy was a tenth of the report's time)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self)}
         out["vig"] = [None if not np.isfinite(v) else v for v in self.vig]
         return out
 

@@ -17,6 +17,12 @@ from nbv.utils.markdown import md_table
 from nbv.utils.stats import Interval, bootstrap_mean
 
 
+def repeat_mean(values: list) -> float:
+    """The mean of one episode's repeats: the value itself for one repeat (most methods; as
+    ``np.mean`` gives it, without its cost, which the report pays some 10^5 times)."""
+    return float(values[0]) if len(values) == 1 else float(np.mean(values))
+
+
 def episode_means(records: list) -> dict[tuple, dict[tuple[str, int], EpisodeMean]]:
     """Records by (dataset, viewspace, method, check), then by episode (model key, start view),
     a stochastic method's repeats averaged into one :class:`EpisodeMean` per episode."""
@@ -27,15 +33,16 @@ def episode_means(records: list) -> dict[tuple, dict[tuple[str, int], EpisodeMea
     for group, episodes in by.items():
         out[group] = {}
         for episode, rs in episodes.items():
+            coverage = np.array([r.coverage for r in rs], dtype=float)
             vig = np.array([r.vig for r in rs], dtype=float)
             out[group][episode] = EpisodeMean(
-                auc=float(np.mean([r.auc for r in rs])),
-                coverage=np.mean([r.coverage for r in rs], axis=0),
-                vig=vig.mean(axis=0),
-                total=float(np.mean([r.timings["total"] for r in rs])),
-                online=float(np.mean([r.timings["online"] for r in rs])),
-                zero_gain=float(np.mean([r.counts.get("zero_gain", 0) for r in rs])),
-                planned=float(np.mean([r.counts.get("planned", 0) for r in rs])),
+                auc=repeat_mean([r.auc for r in rs]),
+                coverage=coverage[0] if len(rs) == 1 else coverage.mean(axis=0),
+                vig=vig[0] if len(rs) == 1 else vig.mean(axis=0),
+                total=repeat_mean([r.timings["total"] for r in rs]),
+                online=repeat_mean([r.timings["online"] for r in rs]),
+                zero_gain=repeat_mean([r.counts.get("zero_gain", 0) for r in rs]),
+                planned=repeat_mean([r.counts.get("planned", 0) for r in rs]),
                 repeats=len(rs),
             )
     return out
@@ -157,32 +164,18 @@ class PairedDifference:
     mean_b: float
 
 
-def paired_difference(
-    records: list,
-    a: tuple[str, str | None],
-    b: tuple[str, str | None],
-    dataset: str,
-    viewspace: str,
-    seed: int = 0,
-) -> PairedDifference | None:
+def paired_from_means(means: dict, a: tuple, b: tuple, seed: int = 0) -> PairedDifference | None:
     """AUC(b) - AUC(a) over the episodes both ran, with a bootstrap interval (models resampled).
 
     Args:
-        records: episode records.
-        a, b: (method, check or None) of each side.
-        dataset, viewspace: where.
+        means: :func:`episode_means` of the records (computed once for many pairs: it is the
+            costly part).
+        a, b: the (dataset, viewspace, method, check or None) keys of each side.
         seed: the bootstrap's seed.
 
     Returns:
         None when no episode is shared.
     """
-    means = episode_means([r for r in records if r.dataset == dataset and r.viewspace == viewspace])
-    return paired_from_means(means, (dataset, viewspace, *a), (dataset, viewspace, *b), seed)
-
-
-def paired_from_means(means: dict, a: tuple, b: tuple, seed: int = 0) -> PairedDifference | None:
-    """:func:`paired_difference` on :func:`episode_means` already computed; ``a`` and ``b`` are
-    their (dataset, viewspace, method, check) keys."""
     ea, eb = means.get(a, {}), means.get(b, {})
     shared = sorted(set(ea) & set(eb))
     if not shared:
