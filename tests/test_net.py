@@ -5,6 +5,7 @@ Tiny configs keep everything fast on CPU; the default config is only built to ch
 
 from __future__ import annotations
 
+import copy
 import math
 from pathlib import Path
 
@@ -567,6 +568,8 @@ def test_inference_copy_folds_batch_norm_and_predicts_the_same() -> None:
     model = tiny(n_views=9)
     train_steps(model, 5)  # batch-norm running statistics away from their defaults
     model.eval()
+    with torch.no_grad():
+        model.attention.gamma.fill_(0.7)  # trained nets keep it near 0; make the path count
     points, state, _ = random_batch(3, 40, 9, seed=1)
     with torch.no_grad():
         exact = model(points, state)
@@ -575,15 +578,36 @@ def test_inference_copy_folds_batch_norm_and_predicts_the_same() -> None:
         assert not any(isinstance(m, torch.nn.BatchNorm1d) for m in fast.modules())
         assert all(not p.requires_grad for p in fast.parameters())
         half = for_inference(model, "bf16")
-        assert half.convs[0].linear.weight.dtype == torch.bfloat16
+        assert half.conv_points.dtype == torch.bfloat16 and half.key_points.dtype == torch.bfloat16
         assert half.head[0].weight.dtype == torch.float32
         assert half.features.first.linear.weight.dtype == torch.float32
-        assert half.attention.query.weight.dtype == torch.bfloat16
+        assert half.query_rest.dtype == torch.float32  # the per-sample constants: float32
         with autocast("bf16"):
             approx = half(points, state)
         assert torch.allclose(approx, exact, atol=0.05 * exact.abs().max().item())
+        # The rewriting is exact in real arithmetic: in float64 the two agree to 1e-12.
+        wide = copy.deepcopy(model).double()
+        x64, s64 = points.double(), state.double()
+        torch.testing.assert_close(
+            for_inference(wide, "fp32")(x64, s64), wide(x64, s64), rtol=1e-12, atol=1e-12
+        )
     # The original is untouched.
     assert model.convs[0].norm is not None and model.convs[0].linear.weight.requires_grad
+
+
+def test_inference_copy_drops_only_constant_parts() -> None:
+    """A view state or global feature change reaches the output through the folded constants:
+    the rewritten network answers every input as the original does."""
+    torch.manual_seed(3)
+    model = tiny(n_views=9).eval()
+    with torch.no_grad():
+        model.attention.gamma.fill_(-1.3)
+        fast = for_inference(model, "fp32")
+        points, state, _ = random_batch(4, 30, 9, seed=5)
+        for s in (state, 1 - state, torch.zeros_like(state)):
+            torch.testing.assert_close(fast(points, s), model(points, s), rtol=1e-5, atol=1e-6)
+        with pytest.raises(ValueError, match="view_state must have shape"):
+            fast(points, state[:, :4])
 
 
 def test_flush_denormals_is_scoped() -> None:

@@ -1,5 +1,6 @@
 """The FLOP floor of a network episode on this machine: the float32 FLOPs of a PCNBV forward
-pass, counted from its layer shapes, over the CPU's peak float32 FLOP/s.
+pass, counted from its layer shapes (as written, and in the rewritten evaluation form that the
+evaluator runs), over the CPU's peak float32 FLOP/s.
 
 Peak float32 FLOP/s = cores x clock x lanes x 2 (a fused multiply-add is two FLOPs) x 2 (FMA
 pipes a core). Cores are the ones this process may run on; the clock is the CPU's highest
@@ -18,17 +19,9 @@ from pathlib import Path
 from nbv.models.config import PCNBVConfig
 
 
-def pcnbv_flops(config: PCNBVConfig, n_points: int) -> int:
-    """FLOPs (2 a multiply-add) of the matrix products of one PCNBV forward pass of one sample
-    as :mod:`nbv.models.layers` computes them (the dense EdgeConv's split first layer, the
-    neighbour search's distance products, attention, the 1x1 convs, the head); element-wise
-    work (ReLU, softmax, max, biases) is left out, a few percent at most.
-
-    Args:
-        config: the network's sizes.
-        n_points: points the sample holds (``eval_points``, or ``4 (lmax+1)^2`` for a signature).
-    """
-    n, c0, g, k = n_points, config.first_channels, config.growth, config.k
+def _extractor_macs(config: PCNBVConfig, n: int) -> int:
+    """Multiply-adds of the feature extractor of one sample of ``n`` points (both forms)."""
+    c0, g, k = config.first_channels, config.growth, config.k
     macs = n * 3 * c0  # the first 1x1 conv
     for block in range(config.blocks):
         if block:  # the squeeze 1x1 conv to c0 before every block but the first
@@ -37,13 +30,48 @@ def pcnbv_flops(config: PCNBVConfig, n_points: int) -> int:
         macs += 2 * n * c0 * g  # the first dense layer: neighbour and centre parts, per point
         for layer in range(1, config.dense_layers):
             macs += n * k * layer * g * g + n * c0 * g  # edge part per edge, centre part per point
-    c, a = config.concat_channels, config.attention_channels
+    return macs
+
+
+def _tail_macs(config: PCNBVConfig, n: int, first: int) -> int:
+    """Multiply-adds of the 1x1 convs after the first one (whose are ``first``) and the head."""
+    widths = config.conv_channels
+    macs = first + sum(n * p * q for p, q in zip(widths[:-1], widths[1:], strict=True))
+    widths = (config.conv_channels[-1], *config.fc_channels, config.n_views)
+    return macs + sum(p * q for p, q in zip(widths[:-1], widths[1:], strict=True))
+
+
+def pcnbv_flops(config: PCNBVConfig, n_points: int) -> int:
+    """FLOPs (2 a multiply-add) of the matrix products of one forward pass of one sample of
+    :class:`~nbv.models.pcnbv.PCNBV` as written (the training form): the dense EdgeConv's split
+    first layer, the neighbour search's distance products, attention, the 1x1 convs, the head.
+    Element-wise work (ReLU, softmax, max, biases) is left out, a few percent at most.
+
+    Args:
+        config: the network's sizes.
+        n_points: points the sample holds (``eval_points``, or ``4 (lmax+1)^2`` for a signature).
+    """
+    n, c, a = n_points, config.concat_channels, config.attention_channels
+    macs = _extractor_macs(config, n)
     macs += 2 * n * c * a + n * c * c  # query, key, value
     macs += n * n * a + n * n * c  # q k^T, attention times values
-    widths = (c, *config.conv_channels)
-    macs += sum(n * p * q for p, q in zip(widths[:-1], widths[1:], strict=True))
-    widths = (config.conv_channels[-1], *config.fc_channels, config.n_views)
-    macs += sum(p * q for p, q in zip(widths[:-1], widths[1:], strict=True))
+    macs += _tail_macs(config, n, n * c * config.conv_channels[0])
+    return 2 * macs
+
+
+def inference_flops(config: PCNBVConfig, n_points: int) -> int:
+    """FLOPs as :func:`pcnbv_flops` counts them, of the rewritten evaluation-mode forward of
+    :class:`~nbv.models.inference.InferencePCNBV` (what evaluation and the bench run): queries
+    and keys of the per-point channels only, the attention times the per-point features, one
+    first conv of twice their channels, and the per-sample products of the global feature and
+    the view state."""
+    n, p, a = n_points, config.point_channels, config.attention_channels
+    rest = p + config.n_views  # the global feature and the view state, once a sample
+    macs = _extractor_macs(config, n)
+    macs += 2 * n * p * a + rest * a  # queries and keys of the points; the query's constant
+    macs += n * n * a + n * n * p  # q k^T, attention times the per-point features
+    first = config.conv_channels[0]
+    macs += _tail_macs(config, n, n * 2 * p * first + rest * first)
     return 2 * macs
 
 

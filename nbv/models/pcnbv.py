@@ -28,6 +28,33 @@ from nbv.models.layers import FeatureExtractor, Pointwise, SelfAttention, max_ov
 from nbv.models.precision import in_float32
 
 
+def check_inputs(
+    config: PCNBVConfig, dtype: torch.dtype, points: Tensor, view_state: Tensor
+) -> None:
+    """Refuse inputs a PCNBV of ``config`` with weights of ``dtype`` cannot read: points not
+    (B, N >= k, 3) of that dtype or not finite, a view state not (B, V).
+
+    Raises:
+        ValueError: naming the input, its shape or dtype, and what is allowed.
+    """
+    v, k = config.n_views, config.k
+    if points.ndim != 3 or points.shape[2] != 3:
+        raise ValueError(f"points must have shape (B, N, 3), got {tuple(points.shape)}")
+    if points.dtype != dtype:
+        raise ValueError(f"points must be {dtype} like the network's weights, got {points.dtype}")
+    b, n = points.shape[:2]
+    if view_state.shape != (b, v):
+        raise ValueError(
+            f"view_state must have shape (B, V) = ({b}, {v}), got {tuple(view_state.shape)}"
+        )
+    if n < k:
+        raise ValueError(
+            f"points must hold at least k = {k} points a sample, got shape {tuple(points.shape)}"
+        )
+    if not torch.isfinite(points).all():
+        raise ValueError("points must be finite, got NaN or inf")
+
+
 class PCNBV(nn.Module):
     """The PC-NBV network (and PCNBV-sph with signature points as input).
 
@@ -54,28 +81,6 @@ class PCNBV(nn.Module):
         layers.append(nn.Linear(widths[-1], cfg.n_views))
         self.head = nn.Sequential(*layers)
 
-    def _check_inputs(self, points: Tensor, view_state: Tensor) -> None:
-        v, k = self.config.n_views, self.config.k
-        if points.ndim != 3 or points.shape[2] != 3:
-            raise ValueError(f"points must have shape (B, N, 3), got {tuple(points.shape)}")
-        dtype = self.attention.gamma.dtype
-        if points.dtype != dtype:
-            raise ValueError(
-                f"points must be {dtype} like the network's weights, got {points.dtype}"
-            )
-        b, n = points.shape[:2]
-        if view_state.shape != (b, v):
-            raise ValueError(
-                f"view_state must have shape (B, V) = ({b}, {v}), got {tuple(view_state.shape)}"
-            )
-        if n < k:
-            raise ValueError(
-                f"points must hold at least k = {k} points a sample, "
-                f"got shape {tuple(points.shape)}"
-            )
-        if not torch.isfinite(points).all():
-            raise ValueError("points must be finite, got NaN or inf")
-
     @staticmethod
     def normalize(points: Tensor) -> Tensor:
         """Centre every cloud at its centroid and scale it to max radius 1 (a cloud of one
@@ -94,7 +99,7 @@ class PCNBV(nn.Module):
         Returns:
             (B, V) float, same dtype as ``points`` (also under bfloat16 :func:`autocast`).
         """
-        self._check_inputs(points, view_state)
+        check_inputs(self.config, self.attention.gamma.dtype, points, view_state)
         if self.config.normalize_input:
             points = self.normalize(points)
         per_point = self.features(points)
