@@ -18,7 +18,7 @@ from nbv.geometry.viewspace import original_viewspace
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState, run_episode
 from nbv.policies.inputs import NO_SPREAD
-from nbv.policies.network import MAX_BATCH, NetworkPolicy
+from nbv.policies.network import MAX_BATCH, NetworkPolicy, chunk_size
 from nbv.policies.volumetric import InformationGainPolicy
 
 log = logging.getLogger(__name__)
@@ -75,7 +75,7 @@ def test_batched_gains_and_picks_equal_one_at_a_time_on_the_shipped_weights(rend
     single = np.stack([policy.predict(c, s) for c, s in states])
     # decide(): the first best unvisited view of predict()
     picks = [int(np.argmax(np.where(s, -np.inf, g))) for s, g in zip(shown, single, strict=True)]
-    for k in (5, len(states)):  # uneven batches, and all at once (chunked by MAX_BATCH)
+    for k in (5, len(states)):  # uneven batches, and all at once (in chunks of chunk_size)
         batched = np.concatenate(
             [policy.predict_many(clouds[i : i + k], shown[i : i + k]) for i in range(0, 72, k)]
         )
@@ -90,6 +90,12 @@ def test_batched_gains_and_picks_equal_one_at_a_time_on_the_shipped_weights(rend
     log.info("%s: smallest lead of a pick over the second best view %.3g", method, margin)
     assert margin > 10 * gap
     assert len(set(picks)) > 5  # the states ask different questions
+
+
+def test_chunks_hold_at_most_max_points():
+    assert chunk_size(512) == 4  # PCNBV's cloud: past 2,048 points a forward leaves the cache
+    assert chunk_size(64) == MAX_BATCH  # PCNBV-sph's signature
+    assert chunk_size(100_000) == 1
 
 
 def test_decide_many_masks_the_visited_views_apart_from_the_shown_state(rendered_views):
