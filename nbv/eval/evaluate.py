@@ -504,10 +504,10 @@ def run(settings: EvalSettings) -> Path:
     evaluation = evaluate(with_shipped_weights(settings))
     # The numbers first: a failure while drawing must not lose them. report.md is written
     # again after the plots, to show them.
-    write_outputs(evaluation)
+    body = write_outputs(evaluation)
     if settings.plots:
         from nbv.eval.plots import draw_all
 
         draw_all(evaluation)
-        write_outputs(evaluation, report_only=True)
+        write_outputs(evaluation, report_only=True, body=body)
     return settings.out_dir
