@@ -158,3 +158,25 @@ def test_area_factor_classes_rays_by_what_they_meet_first():
     # Views of one ray each: all occupied scores AF(1; 0.2) + AF(0; 0.8) = 0; all occplane
     # AF(0; 0.2) + AF(1; 0.8) = 0; nothing seen 0: the score asks for a mix.
     assert view_gains(occupancy, rays[:, None], "area_factor").tolist() == [0.0] * 5
+
+
+def test_frontier_is_every_unknown_neighbour_of_an_occupied_voxel():
+    """Against brute force: every voxel's 26 neighbours looked at one by one, on random maps
+    with occupied voxels on the grid's faces and corners too."""
+    rng = np.random.default_rng(7)
+    occupancy = _map(resolution=0.08)  # 14^3 voxels
+    n = occupancy.settings.n
+    for fraction in (0.0, 0.02, 0.3):
+        values = rng.choice([OCCUPIED, FREE, np.nan], size=n**3, p=[fraction, 0.3, 0.7 - fraction])
+        values[_flat(occupancy, 0, 0, 0)] = OCCUPIED
+        values[_flat(occupancy, n - 1, 5, n - 1)] = OCCUPIED
+        occupancy.log_odds[:] = values
+        grid = values.reshape(n, n, n)
+        expected = np.zeros((n, n, n), dtype=bool)
+        for i, j, k in np.ndindex(n, n, n):
+            if not np.isnan(grid[i, j, k]):
+                continue
+            block = grid[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2, max(k - 1, 0) : k + 2]
+            expected[i, j, k] = bool((block >= 0).any())
+        assert np.array_equal(frontier(occupancy), expected.ravel())
+    assert expected.any()

@@ -192,24 +192,24 @@ def proximity(occupancy: OccupancyMap, distance_range: float = PROXIMITY_RANGE) 
     return weights
 
 
-#: The 27 offsets of a voxel's 3 x 3 x 3 neighbourhood, itself included.
-_NEIGHBOURHOOD = np.stack(np.meshgrid(*[np.arange(-1, 2)] * 3, indexing="ij"), -1).reshape(-1, 3)
-
-
 def frontier(occupancy: OccupancyMap) -> np.ndarray:
     """(n^3,) bool: the unknown voxels with an occupied voxel among their 26 neighbours.
 
-    The occupied voxels' neighbourhoods are marked (a dilation of the few occupied voxels
-    rather than of the whole grid: a few thousand of 175k at the default resolution)."""
+    The occupied voxels are dilated by the 3 x 3 x 3 cube as three one-voxel dilations, one
+    along each axis (the cube is their product): six shifted ORs of the boolean grid, about
+    a tenth of the cost of marking each occupied voxel's 27 neighbours by index."""
     n = occupancy.settings.n
     log_odds = occupancy.log_odds
-    cells = np.stack(np.unravel_index(np.flatnonzero(log_odds >= 0), (n, n, n)), axis=1)
-    near = np.zeros(len(log_odds), dtype=bool)
-    for offset in _NEIGHBOURHOOD:
-        moved = cells + offset
-        inside = ((moved >= 0) & (moved < n)).all(axis=1)
-        near[np.ravel_multi_index(moved[inside].T, (n, n, n))] = True
-    return near & np.isnan(log_odds)
+    near = (log_odds >= 0).reshape(n, n, n)
+    for axis in range(3):
+        grown = near.copy()
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        grown[tuple(lo)] |= near[tuple(hi)]
+        grown[tuple(hi)] |= near[tuple(lo)]
+        near = grown
+    return near.ravel() & np.isnan(log_odds)
 
 
 def candidate_segments(
