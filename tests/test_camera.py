@@ -8,6 +8,7 @@ from nbv.geometry.camera import (
     opencv_to_blender,
     pixel_rays,
     project,
+    valid_depth,
     viewspace_poses,
 )
 from nbv.geometry.viewspace import original_viewspace
@@ -130,3 +131,19 @@ def test_blender_pose_looks_down_its_minus_z():
     np.testing.assert_allclose(-b[:3, 2], [0, 0, -1], atol=1e-12)  # looks towards the origin
     np.testing.assert_allclose(b[:3, 1], [0, 1, 0], atol=1e-12)  # camera up is world up
     np.testing.assert_allclose(b[:3, 3], pose[:3, 3])
+
+
+def test_backproject_equals_the_whole_image_rays_masked():
+    """The rays of the valid pixels alone give, bit for bit, what masking every pixel's ray
+    gives, in the same row-major order."""
+    k = Intrinsics(width=64, height=48, fx=60.0, fy=61.0, cx=31.7, cy=23.2)
+    rng = np.random.default_rng(0)
+    depth = rng.uniform(0.5, 2.0, (48, 64)).astype(np.float32)
+    depth[rng.random((48, 64)) < 0.5] = np.inf
+    depth[0, :5] = 0.0  # not a surface either
+    pose = np.eye(4)
+    pose[:3, :3] = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    pose[:3, 3] = [1.0, 2.0, 3.0]
+    mask = valid_depth(depth)
+    expected = (pixel_rays(k)[mask] * depth[mask].astype(np.float64)[:, None]) @ pose[:3, :3].T
+    assert np.array_equal(backproject(depth, k, pose), expected + pose[:3, 3])

@@ -190,6 +190,7 @@ def test_nothing_produced_is_an_error_status(tmp_path):
         (dict(shard=2, num_shards=2), "shard"),
         (dict(renderer=Renderer(backend="povray")), "renderer.backend='povray': must be one of"),
         (dict(renderer=Renderer(chunk=0)), "renderer.chunk=0: must be an integer >= 1"),
+        (dict(renderer=Renderer(processes=-1)), "renderer.processes=-1: must be an integer >= 0"),
         (dict(eps=0.0), "eps"),
         (dict(source="thingiverse"), "source='thingiverse': must be one of synthetic"),
     ],
@@ -197,6 +198,18 @@ def test_nothing_produced_is_an_error_status(tmp_path):
 def test_bad_settings_name_the_key(tmp_path, bad, message):
     with pytest.raises(ConfigError, match=message):
         small_settings(tmp_path, **bad)
+
+
+def test_render_options_share_the_cores(tmp_path):
+    """One Blender process of one thread a core by default on the CPU, one process of every
+    core on a GPU; what is set stays; ray casting takes threads alone."""
+    cpu = small_settings(tmp_path, renderer=Renderer())
+    assert cpu.render_options(2) == dict(threads=1, blender=None, device="CPU", processes=2)
+    gpu = small_settings(tmp_path, renderer=Renderer(device="GPU"))
+    assert gpu.render_options(4) == dict(threads=4, blender=None, device="GPU", processes=1)
+    set_ = small_settings(tmp_path, renderer=Renderer(processes=3, threads=2))
+    assert set_.render_options(2) == dict(threads=2, blender=None, device="CPU", processes=3)
+    assert small_settings(tmp_path).render_options(8) == dict(threads=0)  # raycast
 
 
 #: The data identity of ``python -m nbv.dataset seed=5``, as every shard made since issue 29 (eps =

@@ -190,6 +190,10 @@ def test_render_refuses_bad_settings(tmp_path):
         render([], CAMERA, threads=-1)
     with pytest.raises(FileNotFoundError, match="no-such-blender"):
         render_blender([], CAMERA, tmp_path, blender="/no-such-blender")
+    with pytest.raises(ValueError, match="processes must be an integer >= 1"):
+        render_blender([], CAMERA, tmp_path, processes=0)
+    with pytest.raises(ValueError, match="takes options"):
+        render([], CAMERA, backend="raycast", processes=2)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -253,6 +257,26 @@ def test_blender_agrees_with_raycast_and_streams(tmp_path):
     # Orientation: the box at +x is on the right of the view from +z (pose 1).
     cols = np.nonzero(valid_depth(results["box"][1]))[1]
     assert cols.size and cols.min() > CAMERA.cx
+
+
+@pytest.mark.blender
+def test_blender_processes_render_the_same_depth(tmp_path):
+    """Two Blender processes of one thread give every mesh the depth of one process of two
+    threads, bit for bit; a key given twice is refused even when the two land in different
+    processes; nothing is left in workdir."""
+    meshes = {"sphere": _sphere(), "box": _box_at_x(), "parts": _two_parts()}
+    jobs = [RenderJob(key, m.vertices, m.faces, POSES) for key, m in meshes.items()]
+    jobs.append(RenderJob("box", meshes["box"].vertices, meshes["box"].faces, POSES))
+    one = dict(render(jobs[:3], CAMERA, workdir=tmp_path, threads=2))
+    results = list(render(jobs, CAMERA, workdir=tmp_path, threads=1, processes=2))
+    assert sorted(k for k, _ in results) == ["box", "box", "parts", "sphere"]
+    refused = [r for k, r in results if isinstance(r, RenderError)]
+    assert len(refused) == 1 and "duplicate key" in str(refused[0])
+    two = {k: r for k, r in results if not isinstance(r, RenderError)}
+    assert two.keys() == one.keys()
+    for key, depth in one.items():
+        assert np.array_equal(two[key], depth), key
+    assert not any(tmp_path.iterdir())
 
 
 def _script_job(tmp_path: Path, entries: list[dict]) -> Path:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -218,9 +219,7 @@ def generate(settings: GenerationSettings) -> Summary:
     all_poses = np.concatenate(list(poses.values()))
     root_attrs = _root_attrs(settings)
 
-    render_options: dict = {"threads": renderer.threads}
-    if renderer.backend == "blender":
-        render_options.update(blender=renderer.blender, device=renderer.device)
+    render_options = settings.render_options(len(os.sched_getaffinity(0)))
     done, old_failures = _completed_keys(shard_file, parts_dir)
     summary = Summary(shard_file, total=len(mine), skipped=sum(m.key in done for m in mine))
     todo = [m for m in mine if m.key not in done]

@@ -173,8 +173,10 @@ def backproject(depth: np.ndarray, intrinsics: Intrinsics, pose: np.ndarray) -> 
             f"depth image is {depth.shape}, the intrinsics expect "
             f"{(intrinsics.height, intrinsics.width)}"
         )
-    mask = valid_depth(depth)
-    cam = pixel_rays(intrinsics)[mask] * depth[mask].astype(np.float64)[:, None]
+    # The rays of the valid pixels alone (the same values as pixel_rays(intrinsics)[mask], in
+    # the same row-major order): an object fills a fraction of the image.
+    rows, cols = np.nonzero(valid_depth(depth))
+    cam = rays_through(intrinsics, cols, rows) * depth[rows, cols].astype(np.float64)[:, None]
     return cam @ pose[:3, :3].T + pose[:3, 3]
 
 

@@ -41,15 +41,16 @@ def render(
         backend: "blender" (default, :func:`render_blender`) or "raycast" (:func:`render_raycast`).
         workdir: temporary folder for the Blender backend; None makes one under the system's
             temporary folder (removed afterwards unless a log had to be kept).
-        **kw: backend options: ``blender``, ``threads``, ``device`` for "blender"; ``threads``
-            for "raycast".
+        **kw: backend options: ``blender``, ``threads``, ``device``, ``processes`` for
+            "blender"; ``threads`` for "raycast".
 
     Yields:
         ``(key, depth or RenderError)``; depth is (V, H, W) float32 planar depth, inf background.
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    allowed = {"blender": {"blender", "threads", "device"}, "raycast": {"threads"}}[backend]
+    allowed = {"blender": {"blender", "threads", "device", "processes"}, "raycast": {"threads"}}
+    allowed = allowed[backend]
     if set(kw) - allowed:
         raise ValueError(
             f"backend {backend!r} takes options {sorted(allowed)}, got {sorted(set(kw) - allowed)}"

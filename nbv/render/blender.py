@@ -1,14 +1,16 @@
 """The Blender driver: a stream of meshes rendered by ``blender_scripts/render_depth.py`` in
-one subprocess."""
+one subprocess, or in several at once."""
 
 from __future__ import annotations
 
 import json
+import queue
 import shutil
 import signal
 import subprocess
 import sys
 import tempfile
+import threading
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -117,8 +119,10 @@ def render_blender(
     blender: str | None = None,
     threads: int = 0,
     device: str = "CPU",
+    processes: int = 1,
 ) -> Iterator[tuple[str, np.ndarray | RenderError]]:
-    """Render meshes with Blender Cycles in one subprocess, yielding each as soon as it is done.
+    """Render meshes with Blender Cycles in one subprocess (or ``processes`` at once), yielding
+    each as soon as it is done.
 
     All jobs are staged into a fresh folder under ``workdir`` first (meshes as .npz, poses
     converted to Blender's camera convention), then ``blender_scripts/render_depth.py`` renders
@@ -133,22 +137,98 @@ def render_blender(
         workdir: folder for temporary files (created if missing).
         blender: path of a Blender executable (:data:`SUPPORTED_VERSIONS`; the script refuses
             others); None runs the script with this Python's ``bpy`` module.
-        threads: CPU threads for Cycles; 0 = all cores.
+        threads: CPU threads for Cycles in each process; 0 = all cores.
         device: "CPU", "GPU" (fail without one) or "AUTO" (GPU when present).
+        processes: Blender processes rendering at once, the jobs dealt out in turn. The depth
+            is the same bit for bit; on 2 cores two processes of one thread rendered 17 %
+            faster than one of two threads (65 against 79 ms a view, 2026-12-03), as a view's
+            scene update and EXR round trip run on one thread.
 
     Yields:
         ``(key, depth)`` with (V, H, W) float32 planar depth, ``inf`` for background, or
-        ``(key, RenderError)``, in job order (invalid jobs are reported first).
+        ``(key, RenderError)``: in job order (invalid jobs first) with one process, in the
+        order they finish with several.
 
     Raises:
-        ValueError: bad ``threads``/``device``; FileNotFoundError: ``blender`` not found.
+        ValueError: bad ``threads``/``device``/``processes``; FileNotFoundError: ``blender``
+            not found.
     """
     check_options(threads, device, blender)
+    if isinstance(processes, bool) or not isinstance(processes, int | np.integer) or processes < 1:
+        raise ValueError(f"processes must be an integer >= 1, got {processes!r}")
     if not BLENDER_SCRIPT.is_file():
         raise FileNotFoundError(f"{BLENDER_SCRIPT} is missing: nbv must run from a checkout")
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
-    return _render_blender(jobs, intrinsics, workdir, blender, threads, device)
+    if processes == 1:
+        return _render_blender(jobs, intrinsics, workdir, blender, threads, device)
+    return _render_parallel(list(jobs), intrinsics, workdir, blender, threads, device, processes)
+
+
+def _render_parallel(
+    jobs: list[RenderJob],
+    intrinsics: Intrinsics,
+    workdir: Path,
+    blender: str | None,
+    threads: int,
+    device: str,
+    processes: int,
+) -> Iterator[tuple[str, np.ndarray | RenderError]]:
+    """:func:`_render_blender` streams of every ``processes``-th job, merged as they finish.
+
+    Each stream runs in a thread that only waits on its subprocess. A key given twice is
+    refused here (each stream sees only its own share of the keys)."""
+    seen: set[str] = set()
+    unique = []
+    for index, job in enumerate(jobs):
+        key = getattr(job, "key", f"#{index}")
+        if key in seen:
+            yield key, RenderError(f"{key!r}: duplicate key")
+            continue
+        seen.add(key)
+        unique.append(job)
+    shares = [unique[i::processes] for i in range(processes)]
+    streams = [_render_blender(share, intrinsics, workdir, blender, threads, device)
+               for share in shares if share]  # fmt: skip
+    yield from _merged(streams)
+
+
+def _merged(streams: list[Iterator]) -> Iterator:
+    """The items of ``streams``, each drained by its own thread, in the order they come; an
+    exception of a stream is raised here. Leaving early lets each stream finish the item it
+    is on, then closes it (which stops its Blender process)."""
+    items: queue.Queue = queue.Queue()
+    stop = threading.Event()
+
+    def drain(stream: Iterator) -> None:
+        try:
+            for item in stream:
+                items.put(("item", item))
+                if stop.is_set():
+                    break
+        except BaseException as exc:  # handed to the consumer, raised there
+            items.put(("error", exc))
+        finally:
+            stream.close()
+            items.put(("end", None))
+
+    workers = [threading.Thread(target=drain, args=(s,), daemon=True) for s in streams]
+    for worker in workers:
+        worker.start()
+    try:
+        open_streams = len(workers)
+        while open_streams:
+            kind, value = items.get()
+            if kind == "end":
+                open_streams -= 1
+            elif kind == "error":
+                raise value
+            else:
+                yield value
+    finally:
+        stop.set()
+        for worker in workers:
+            worker.join()
 
 
 def _render_blender(
