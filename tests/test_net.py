@@ -577,11 +577,12 @@ def test_inference_copy_folds_batch_norm_and_predicts_the_same() -> None:
         torch.testing.assert_close(fast(points, state), exact, rtol=1e-5, atol=1e-6)
         assert not any(isinstance(m, torch.nn.BatchNorm1d) for m in fast.modules())
         assert all(not p.requires_grad for p in fast.parameters())
-        half = for_inference(model, "bf16")
-        assert half.conv_points.dtype == torch.bfloat16 and half.key_points.dtype == torch.bfloat16
+        assert fast.conv_points.dtype == torch.float32  # float32: the rewritten form
+        half = for_inference(model, "bf16")  # bfloat16: the network's own form
+        assert half.convs[0].linear.weight.dtype == torch.bfloat16
+        assert half.attention.query.weight.dtype == torch.bfloat16
         assert half.head[0].weight.dtype == torch.float32
         assert half.features.first.linear.weight.dtype == torch.float32
-        assert half.query_rest.dtype == torch.float32  # the per-sample constants: float32
         with autocast("bf16"):
             approx = half(points, state)
         assert torch.allclose(approx, exact, atol=0.05 * exact.abs().max().item())
