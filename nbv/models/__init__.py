@@ -13,7 +13,8 @@ Modules, each importing only the ones above it:
   :class:`FeatureExtractor`, :class:`SelfAttention`.
 - :mod:`nbv.models.pcnbv`: :class:`PCNBV`, the PC-NBV network (also PCNBV-sph), and
   :func:`count_parameters`.
-- :mod:`nbv.models.inference`: :func:`for_inference` (batch norm folded, bfloat16 weights) and
+- :mod:`nbv.models.inference`: :func:`for_inference` (batch norm folded; in float32 the
+  rewritten :class:`InferencePCNBV`, 23 % fewer FLOPs; in bfloat16 bfloat16 weights) and
   :func:`masked_argmax`, the best unvisited view.
 - :mod:`nbv.models.checkpoints`: :func:`save_checkpoint`, :func:`load_checkpoint`,
   :class:`CheckpointError`.
