@@ -139,6 +139,67 @@ def curves(
     return np.array(cov), np.array(vig)
 
 
+@dataclass
+class RunningEpisode:
+    """An episode under way: its state, the views a one-shot policy has queued, and the seconds
+    of each decision so far (the steps both :func:`run_episode` and
+    :func:`nbv.policies.lockstep.run_lockstep` take)."""
+
+    state: EpisodeState
+    n_views: int
+    queue: list[int] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+
+    @classmethod
+    def start(cls, model: ModelData, viewspace: str, start: int, n_views: int) -> RunningEpisode:
+        """The episode after its start view; ``n_views`` is capped at the viewspace's size.
+
+        Raises:
+            ValueError: a start view outside the viewspace.
+        """
+        n = len(model.views[viewspace].poses)
+        if not 0 <= start < n:
+            raise ValueError(f"start view {start} is outside 0..{n - 1}")
+        state = EpisodeState(model, viewspace, np.zeros(n, dtype=bool), [int(start)])
+        state.view_state[start] = True
+        return cls(state, min(n_views, n))
+
+    @property
+    def done(self) -> bool:
+        """The episode holds its ``n_views`` views."""
+        return len(self.state.order) >= self.n_views
+
+    def take(self, choice: int | list[int] | tuple[int, ...], seconds: float) -> None:
+        """Queue a decision's view (or a one-shot policy's views) and record its seconds.
+
+        Raises:
+            ValueError: the policy returned no view.
+        """
+        self.times.append(seconds)
+        self.queue = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
+        if not self.queue:
+            raise ValueError("the policy returned no view")
+
+    def step(self) -> None:
+        """Capture the next queued view.
+
+        Raises:
+            ValueError: a view visited already or outside the viewspace.
+        """
+        v = self.queue.pop(0)
+        n = len(self.state.view_state)
+        if not 0 <= v < n or self.state.view_state[v]:
+            raise ValueError(f"the policy chose view {v}, visited or outside 0..{n - 1}")
+        self.state.view_state[v] = True
+        self.state.order.append(v)
+
+    def episode(self) -> Episode:
+        """The finished episode, with its coverage and VIG curves."""
+        notes: list[str] = []
+        cov, vig = curves(self.state.model, self.state.viewspace, self.state.order, notes)
+        return Episode(self.state.order, cov, vig, self.times, notes)
+
+
 def run_episode(
     model: ModelData,
     viewspace: str,
@@ -151,29 +212,14 @@ def run_episode(
     A policy returns one view, or a list of views (a one-shot planner), which are taken in order
     until the episode is full; a visited or out-of-range view is an error of the policy.
     """
-    n_candidates = len(model.views[viewspace].poses)
-    if not 0 <= start < n_candidates:
-        raise ValueError(f"start view {start} is outside 0..{n_candidates - 1}")
-    state = EpisodeState(model, viewspace, np.zeros(n_candidates, dtype=bool), [start])
-    state.view_state[start] = True
-    times: list[float] = []
-    queue: list[int] = []
-    while len(state.order) < min(n_views, n_candidates):
-        if not queue:
+    run = RunningEpisode.start(model, viewspace, start, n_views)
+    while not run.done:
+        if not run.queue:
             t0 = time.perf_counter()
-            choice = policy(state)
-            times.append(time.perf_counter() - t0)
-            queue = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
-            if not queue:
-                raise ValueError("the policy returned no view")
-        v = queue.pop(0)
-        if not 0 <= v < n_candidates or state.view_state[v]:
-            raise ValueError(f"the policy chose view {v}, visited or outside 0..{n_candidates - 1}")
-        state.view_state[v] = True
-        state.order.append(v)
-    notes: list[str] = []
-    cov, vig = curves(model, viewspace, state.order, notes)
-    return Episode(state.order, cov, vig, times, notes)
+            choice = policy(run.state)
+            run.take(choice, time.perf_counter() - t0)
+        run.step()
+    return run.episode()
 
 
 def captured_state(

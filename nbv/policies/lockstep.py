@@ -18,13 +18,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
 from nbv.dataset.records import ModelData
-from nbv.policies.episode import EPISODE_VIEWS, Episode, EpisodeState, Policy, curves
+from nbv.policies.episode import EPISODE_VIEWS, Episode, EpisodeState, Policy, RunningEpisode
 
 
 class Request(Protocol):
@@ -102,42 +102,7 @@ class EpisodeSpec:
     policy: Policy
 
 
-@dataclass
-class _Running:
-    spec: EpisodeSpec
-    state: EpisodeState
-    n_views: int
-    queue: list[int] = field(default_factory=list)
-    times: list[float] = field(default_factory=list)
-
-    @property
-    def done(self) -> bool:
-        return len(self.state.order) >= self.n_views
-
-    def take(self, choice: int | list[int] | tuple[int, ...]) -> None:
-        self.queue = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
-        if not self.queue:
-            raise ValueError("the policy returned no view")
-
-    def step(self) -> None:
-        v = self.queue.pop(0)
-        n = len(self.state.view_state)
-        if not 0 <= v < n or self.state.view_state[v]:
-            raise ValueError(f"the policy chose view {v}, visited or outside 0..{n - 1}")
-        self.state.view_state[v] = True
-        self.state.order.append(v)
-
-
-def _start(model: ModelData, spec: EpisodeSpec, n_views: int) -> _Running:
-    n = len(model.views[spec.viewspace].poses)
-    if not 0 <= spec.start < n:
-        raise ValueError(f"start view {spec.start} is outside 0..{n - 1}")
-    state = EpisodeState(model, spec.viewspace, np.zeros(n, dtype=bool), [int(spec.start)])
-    state.view_state[spec.start] = True
-    return _Running(spec, state, min(n_views, n))
-
-
-def _decide_batched(waiting: list[tuple[_Running, Request, float]]) -> None:
+def _decide_batched(waiting: list[tuple[RunningEpisode, Request, float]]) -> None:
     """One batched decision for the requests of one network; each episode's time is its own
     request's seconds plus an equal share of the batched pass's."""
     requests = [r for _, r, _ in waiting]
@@ -145,8 +110,7 @@ def _decide_batched(waiting: list[tuple[_Running, Request, float]]) -> None:
     choices = type(requests[0]).answer_all(requests)
     share = (time.perf_counter() - t0) / len(waiting)
     for (run, _, asked), choice in zip(waiting, choices, strict=True):
-        run.times.append(asked + share)
-        run.take(choice)
+        run.take(choice, asked + share)
 
 
 def run_lockstep(
@@ -162,16 +126,16 @@ def run_lockstep(
         ValueError: a start view outside its viewspace, or a policy that chose a visited or
             out-of-range view.
     """
-    running = [_start(model, spec, n_views) for spec in specs]
+    running = [RunningEpisode.start(model, s.viewspace, s.start, n_views) for s in specs]
     while True:
         active = [run for run in running if not run.done]
         if not active:
             break
-        batches: dict[tuple[type, int, int], list[tuple[_Running, Request, float]]] = {}
-        for run in active:
-            if run.queue:
+        batches: dict[tuple[type, int, int], list[tuple[RunningEpisode, Request, float]]] = {}
+        for run, spec in zip(running, specs, strict=True):
+            if run.done or run.queue:
                 continue
-            policy = run.spec.policy
+            policy = spec.policy
             t0 = time.perf_counter()
             if isinstance(policy, Batchable):
                 request = policy.request(run.state)
@@ -181,15 +145,9 @@ def run_lockstep(
                 batches.setdefault(key, []).append((run, request, time.perf_counter() - t0))
             else:
                 choice = policy(run.state)
-                run.times.append(time.perf_counter() - t0)
-                run.take(choice)
+                run.take(choice, time.perf_counter() - t0)
         for waiting in batches.values():
             _decide_batched(waiting)
         for run in active:
             run.step()
-    episodes = []
-    for run in running:
-        notes: list[str] = []
-        cov, vig = curves(model, run.spec.viewspace, run.state.order, notes)
-        episodes.append(Episode(run.state.order, cov, vig, run.times, notes))
-    return episodes
+    return [run.episode() for run in running]
