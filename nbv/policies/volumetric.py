@@ -116,10 +116,15 @@ class InformationGainPolicy:
                 )
         return kept[key]
 
+    def _traced_key(self, poses: np.ndarray) -> tuple:
+        """The ``traced`` key of the candidates' rays from ``poses`` (and what else they
+        depend on)."""
+        poses = np.asarray(poses, dtype=np.float64)
+        return (poses.tobytes(), self.intrinsics, self.settings.columns, self.settings.occupancy())
+
     def candidate_voxels(self, poses: np.ndarray) -> np.ndarray:
         """(V, R, S) voxels of the rays of every view of ``poses`` (traced once per poses)."""
-        key = (np.asarray(poses).tobytes(), self.intrinsics, self.settings.columns,
-               self.settings.occupancy())  # fmt: skip
+        key = self._traced_key(poses)
         if key not in self.traced:
             self.traced[key] = candidate_voxels(
                 poses, self.intrinsics, self.settings.columns, self.settings.occupancy()
@@ -140,10 +145,10 @@ class InformationGainPolicy:
         """
         poses = np.asarray(poses, dtype=np.float64)
         previous = np.asarray(previous, dtype=np.float64)
-        meta = (self.intrinsics, self.settings.columns, self.settings.occupancy())
-        if (poses.tobytes(), *meta) in self.traced:
+        key = self._traced_key(poses)
+        if key in self.traced:
             return
-        old = self.traced.pop((previous.tobytes(), *meta), None)
+        old = self.traced.pop(self._traced_key(previous), None)
         if old is None or len(previous) > len(poses):
             self.candidate_voxels(poses)
             return
@@ -151,7 +156,7 @@ class InformationGainPolicy:
         changed = np.flatnonzero(~np.all(poses[:n] == previous, axis=(1, 2)))
         changed = np.concatenate([changed, np.arange(n, len(poses))])
         if len(changed) == 0:  # equal values in other bytes (a -0.0 for a 0.0)
-            self.traced[(poses.tobytes(), *meta)] = old
+            self.traced[key] = old
             return
         fresh = candidate_voxels(poses[changed], self.intrinsics, self.settings.columns,
                                  self.settings.occupancy())  # fmt: skip
@@ -160,7 +165,7 @@ class InformationGainPolicy:
         out[:n, :, : old.shape[2]] = old
         out[changed] = -1
         out[changed, :, : fresh.shape[2]] = fresh
-        self.traced[(poses.tobytes(), *meta)] = out
+        self.traced[key] = out
 
     def _gains(self, state: EpisodeState) -> tuple[np.ndarray, np.ndarray]:
         """``(gains, score)``, each (V,): every unvisited view's information gain (0 for the
