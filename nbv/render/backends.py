@@ -25,6 +25,9 @@ from nbv.render.blender import check_options, render_blender
 from nbv.render.job import BACKENDS, RenderError, RenderJob
 from nbv.render.raycast import render_raycast_stream
 
+#: The options each backend takes (:func:`render`'s ``**kw``).
+OPTIONS = {"blender": {"blender", "threads", "device", "processes"}, "raycast": {"threads"}}
+
 
 def render(
     jobs: Iterable[RenderJob],
@@ -49,8 +52,7 @@ def render(
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
-    allowed = {"blender": {"blender", "threads", "device", "processes"}, "raycast": {"threads"}}
-    allowed = allowed[backend]
+    allowed = OPTIONS[backend]
     if set(kw) - allowed:
         raise ValueError(
             f"backend {backend!r} takes options {sorted(allowed)}, got {sorted(set(kw) - allowed)}"
@@ -60,7 +62,9 @@ def render(
         return render_raycast_stream(jobs, intrinsics, kw.get("threads", 0))
     if workdir is not None:
         return render_blender(jobs, intrinsics, Path(workdir), **kw)
-    check_options(kw.get("threads", 0), kw.get("device", "CPU"), kw.get("blender"))
+    check_options(
+        kw.get("threads", 0), kw.get("device", "CPU"), kw.get("blender"), kw.get("processes", 1)
+    )
     return _in_temporary_dir(jobs, intrinsics, kw)
 
 

@@ -42,9 +42,13 @@ def job_spec(intrinsics: Intrinsics, threads: int, device: str) -> dict:
     }
 
 
-def check_options(threads: int, device: str = "CPU", blender: str | None = None) -> None:
+def check_options(
+    threads: int, device: str = "CPU", blender: str | None = None, processes: int = 1
+) -> None:
     if not isinstance(threads, int | np.integer) or threads < 0:
         raise ValueError(f"threads must be an integer >= 0 (0 = all cores), got {threads!r}")
+    if isinstance(processes, bool) or not isinstance(processes, int | np.integer) or processes < 1:
+        raise ValueError(f"processes must be an integer >= 1, got {processes!r}")
     if device not in DEVICES:
         raise ValueError(f"device must be one of {DEVICES}, got {device!r}")
     if blender is not None and shutil.which(blender) is None:
@@ -153,9 +157,7 @@ def render_blender(
         ValueError: bad ``threads``/``device``/``processes``; FileNotFoundError: ``blender``
             not found.
     """
-    check_options(threads, device, blender)
-    if isinstance(processes, bool) or not isinstance(processes, int | np.integer) or processes < 1:
-        raise ValueError(f"processes must be an integer >= 1, got {processes!r}")
+    check_options(threads, device, blender, processes)
     if not BLENDER_SCRIPT.is_file():
         raise FileNotFoundError(f"{BLENDER_SCRIPT} is missing: nbv must run from a checkout")
     workdir = Path(workdir)
