@@ -147,3 +147,7 @@ def test_backproject_equals_the_whole_image_rays_masked():
     mask = valid_depth(depth)
     expected = (pixel_rays(k)[mask] * depth[mask].astype(np.float64)[:, None]) @ pose[:3, :3].T
     assert np.array_equal(backproject(depth, k, pose), expected + pose[:3, 3])
+    # A mask of some of the valid pixels: those alone, the same arithmetic.
+    some = mask & (np.arange(64) < 40)[None, :]
+    expected = (pixel_rays(k)[some] * depth[some].astype(np.float64)[:, None]) @ pose[:3, :3].T
+    assert np.array_equal(backproject(depth, k, pose, some), expected + pose[:3, 3])

@@ -156,13 +156,17 @@ def valid_depth(depth: np.ndarray) -> np.ndarray:
     return np.isfinite(depth) & (depth > 0) & (depth < BACKGROUND_DEPTH)
 
 
-def backproject(depth: np.ndarray, intrinsics: Intrinsics, pose: np.ndarray) -> np.ndarray:
+def backproject(
+    depth: np.ndarray, intrinsics: Intrinsics, pose: np.ndarray, mask: np.ndarray | None = None
+) -> np.ndarray:
     """World points of every valid pixel of a planar depth image.
 
     Args:
         depth: (H, W) planar depth, world units; background as described in the module docstring.
         intrinsics: the camera that produced it.
         pose: (4, 4) camera-to-world.
+        mask: (H, W) bool, the pixels to back-project (each must hold a depth); None = every
+            valid one (:func:`valid_depth`).
 
     Returns:
         (N, 3) float64 world points, in row-major pixel order.
@@ -175,7 +179,7 @@ def backproject(depth: np.ndarray, intrinsics: Intrinsics, pose: np.ndarray) -> 
         )
     # The rays of the valid pixels alone (the same values as pixel_rays(intrinsics)[mask], in
     # the same row-major order): an object fills a fraction of the image.
-    rows, cols = np.nonzero(valid_depth(depth))
+    rows, cols = np.nonzero(valid_depth(depth) if mask is None else mask)
     cam = rays_through(intrinsics, cols, rows) * depth[rows, cols].astype(np.float64)[:, None]
     return cam @ pose[:3, :3].T + pose[:3, 3]
 

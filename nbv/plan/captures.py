@@ -43,7 +43,6 @@ whole or not at all.
 
 from __future__ import annotations
 
-import functools
 import json
 import os
 import shutil
@@ -54,7 +53,13 @@ from pathlib import Path
 import numpy as np
 import OpenEXR
 
-from nbv.geometry.camera import Intrinsics, opencv_to_blender, pixel_rays, project, valid_depth
+from nbv.geometry.camera import (
+    Intrinsics,
+    backproject,
+    opencv_to_blender,
+    project,
+    valid_depth,
+)
 from nbv.planning.occupancy import Misses
 
 #: The index file of a capture folder.
@@ -299,14 +304,6 @@ def _read_view(folder: Path, i: int, view: object, spec: dict, axes: str) -> Cap
     return cloud_capture(_read_cloud(path, where), pose, path, no_return, max_range)
 
 
-@functools.lru_cache(maxsize=8)
-def _pixel_rays(intrinsics: Intrinsics) -> np.ndarray:
-    """:func:`nbv.geometry.camera.pixel_rays`, once per camera (read-only)."""
-    rays = pixel_rays(intrinsics)
-    rays.flags.writeable = False
-    return rays
-
-
 def depth_capture(
     depth: np.ndarray,
     intrinsics: Intrinsics,
@@ -338,10 +335,7 @@ def depth_capture(
     measured = valid_depth(depth)
     beyond = measured & (depth > max_range) if max_range is not None else None
     kept = measured & ~beyond if beyond is not None else measured
-    # backproject's arithmetic, on the camera's rays computed once (a robot's loop adds a
-    # 640 x 480 view at every decision).
-    cam = _pixel_rays(intrinsics)[kept] * depth[kept].astype(np.float64)[:, None]
-    points = cam @ pose[:3, :3].T + pose[:3, 3]
+    points = backproject(depth, intrinsics, pose, kept)
     if len(points) == 0:
         raise CaptureError(
             f"{where}: empty view: no pixel holds a depth"
