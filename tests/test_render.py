@@ -26,7 +26,7 @@ from nbv.geometry.camera import (
 )
 from nbv.geometry.viewspace import original_viewspace
 from nbv.render.backends import render
-from nbv.render.blender import BLENDER_SCRIPT, render_blender
+from nbv.render.blender import BLENDER_SCRIPT, cpu_shares, render_blender, scratch_folder
 from nbv.render.job import RenderError, RenderJob
 from nbv.render.noise import DepthNoise, incidence_angles, noisy_depth
 from nbv.render.raycast import render_raycast
@@ -279,6 +279,65 @@ def test_blender_processes_render_the_same_depth(tmp_path):
     assert not any(tmp_path.iterdir())
 
 
+def test_cpu_shares_bind_each_process_to_its_own_cpus():
+    assert cpu_shares([0, 1], 2) == [[0], [1]]
+    assert cpu_shares([0, 1, 2, 3, 4], 2) == [[0, 2, 4], [1, 3]]
+    assert cpu_shares([3, 5], 3) == [[3], [5], [3]]  # more processes than CPUs: in turn
+    assert cpu_shares([7], 1) == [[7]]
+
+
+def test_scratch_folder_is_in_ram_only_with_room(tmp_path):
+    ram, work = tmp_path / "ram", tmp_path / "work"
+    ram.mkdir(), work.mkdir()
+    assert scratch_folder(work, 1, ram=ram).parent == ram
+    assert scratch_folder(work, 1 << 60, ram=ram).parent == work  # no room for 16 images
+    assert scratch_folder(work, 1, ram=tmp_path / "absent").parent == work
+
+
+_EXR_CHECK = """
+import json, sys
+import numpy as np
+import OpenEXR
+sys.path.insert(0, sys.argv[1])
+import render_depth
+folder = sys.argv[2]
+rng = np.random.default_rng(0)
+rgba = rng.normal(size=(5, 7, 4)).astype(np.float32)
+found = {}
+for name, compression, dtype in [("plain", OpenEXR.NO_COMPRESSION, np.float32),
+                                 ("zip", OpenEXR.ZIP_COMPRESSION, np.float32),
+                                 ("half", OpenEXR.NO_COMPRESSION, np.float16)]:
+    path = f"{folder}/{name}.exr"
+    header = {"compression": compression, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, {"RGBA": rgba.astype(dtype)}) as exr:
+        exr.write(path)
+    try:
+        red, alpha = render_depth.exr_channels(open(path, "rb").read(), 7, 5, path)
+        same = np.array_equal(red, rgba[..., 0]) and np.array_equal(alpha, rgba[..., 3])
+        found[name] = bool(same)
+    except RuntimeError as err:
+        found[name] = str(err)
+print(json.dumps(found))
+"""
+
+
+@pytest.mark.blender
+def test_exr_reader_agrees_with_openexr(tmp_path):
+    """The Blender script's own EXR reader gives the R and A planes OpenEXR's binding wrote, bit
+    for bit, and refuses a compressed or half-float file by name."""
+    run = subprocess.run(
+        [sys.executable, "-c", _EXR_CHECK, str(BLENDER_SCRIPT.parent), str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert run.returncode == 0, run.stderr
+    found = json.loads(run.stdout.splitlines()[-1])
+    assert found["plain"] is True
+    assert "zip.exr" in found["zip"] and "compressed" in found["zip"]
+    assert "half.exr" in found["half"] and "type 1" in found["half"]
+
+
 def _script_job(tmp_path: Path, entries: list[dict]) -> Path:
     job = {"width": 32, "height": 24, "fx": 30.0, "fy": 30.0, "cx": 15.5, "cy": 11.5}
     path = tmp_path / "job.json"
@@ -298,15 +357,18 @@ def test_blender_script_protocol(tmp_path):
          "out": str(tmp_path / f"{name}.npy")}
         for name in ("missing", "corrupt", "box")
     ]  # fmt: skip
+    cpu = min(os.sched_getaffinity(0))
     run = subprocess.run(
         [sys.executable, str(BLENDER_SCRIPT), "--job", str(_script_job(tmp_path, entries))],
         capture_output=True,
         text=True,
         timeout=120,
+        env={**os.environ, "NBV_BLENDER_CPUS": str(cpu)},
     )
     assert run.returncode == 0, run.stderr
     lines = run.stdout.splitlines()
     assert lines[0].startswith("NBV-INFO blender=5.0.1 ") and "binary=bpy-module" in lines[0]
+    assert lines[0].endswith(" cpus=1"), lines[0]  # bound to the one CPU it was given
     assert [line.split()[:2] for line in lines[1:]] == [
         ["NBV-FAIL", "missing"],
         ["NBV-FAIL", "corrupt"],
@@ -328,6 +390,7 @@ def test_blender_script_protocol(tmp_path):
     assert run.returncode == 2
     info, fatal = run.stdout.splitlines()
     assert info.startswith("NBV-INFO ") and fatal.startswith("NBV-FATAL ") and "TPU" in fatal
+    assert info.endswith(f" cpus={len(os.sched_getaffinity(0))}")  # not bound: every CPU
 
 
 @pytest.mark.blender

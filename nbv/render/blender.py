@@ -4,6 +4,7 @@ one subprocess, or in several at once."""
 from __future__ import annotations
 
 import json
+import os
 import queue
 import shutil
 import signal
@@ -30,6 +31,15 @@ SUPPORTED_TEXT = " <= version < ".join(".".join(map(str, v)) for v in SUPPORTED_
 
 
 _STDERR_TAIL_LINES = 20
+#: Renderer processes are bound to CPUs where the system allows it (Linux).
+_CAN_PIN = hasattr(os, "sched_getaffinity") and hasattr(os, "sched_setaffinity")
+#: A RAM-backed folder where Linux has one (see :func:`scratch_folder`).
+RAM_FOLDER = Path("/dev/shm")
+
+
+def _pinned_env(cpus: list[int]) -> dict[str, str]:
+    """This process's environment, with the CPUs the Blender script binds itself to."""
+    return {**os.environ, "NBV_BLENDER_CPUS": ",".join(map(str, cpus))}
 
 
 def job_spec(intrinsics: Intrinsics, threads: int, device: str) -> dict:
@@ -40,6 +50,22 @@ def job_spec(intrinsics: Intrinsics, threads: int, device: str) -> dict:
         "device": device,
         "blender_versions": [list(v) for v in SUPPORTED_VERSIONS],
     }
+
+
+def scratch_folder(workdir: Path, image_bytes: int, ram: Path = RAM_FOLDER) -> Path:
+    """A new folder for the renderer's per-view EXR: in ``ram`` when it is a writable folder
+    with room for 16 images of ``image_bytes``, else in ``workdir``.
+
+    Every view is written and read back once, so a folder on disk pays the kernel's write-back
+    of a 4.9 MB file a view: 13 ms a 640 x 480 view on 2 cores, a tenth of the render.
+    """
+    try:
+        room = os.statvfs(ram)
+        if os.access(ram, os.W_OK) and room.f_bavail * room.f_frsize >= 16 * image_bytes:
+            return Path(tempfile.mkdtemp(prefix="nbv-exr-", dir=ram))
+    except OSError:  # no such folder (not Linux), or not writable after all
+        pass
+    return Path(tempfile.mkdtemp(prefix="nbv-exr-", dir=workdir))
 
 
 def check_options(
@@ -190,9 +216,19 @@ def _render_parallel(
         seen.add(key)
         unique.append(job)
     shares = [unique[i::processes] for i in range(processes)]
-    streams = [_render_blender(share, intrinsics, workdir, blender, threads, device)
-               for share in shares if share]  # fmt: skip
+    pins = cpu_shares(sorted(os.sched_getaffinity(0)), processes) if _CAN_PIN else None
+    streams = [_render_blender(share, intrinsics, workdir, blender, threads, device,
+                               pins[i] if pins else None)
+               for i, share in enumerate(shares) if share]  # fmt: skip
     yield from _merged(streams)
+
+
+def cpu_shares(cpus: list[int], processes: int) -> list[list[int]]:
+    """The CPUs each of ``processes`` renderer processes is bound to: every ``processes``-th of
+    ``cpus``, or one CPU each in turn when there are more processes than CPUs."""
+    if processes <= len(cpus):
+        return [cpus[i::processes] for i in range(processes)]
+    return [[cpus[i % len(cpus)]] for i in range(processes)]
 
 
 def _merged(streams: list[Iterator]) -> Iterator:
@@ -240,12 +276,14 @@ def _render_blender(
     blender: str | None,
     threads: int,
     device: str,
+    cpus: list[int] | None = None,
 ) -> Iterator[tuple[str, np.ndarray | RenderError]]:
     run_dir = Path(tempfile.mkdtemp(prefix="blender-", dir=workdir))
     log = run_dir / "blender.log"
     failed = False
     process: subprocess.Popen | None = None
     pending: list[StagedJob] = []
+    scratch: Path | None = None
     try:
         seen: set[str] = set()
         for index, job in enumerate(jobs):
@@ -257,7 +295,8 @@ def _render_blender(
             except (ValueError, TypeError, AttributeError) as exc:
                 key = getattr(job, "key", f"#{index}")
                 yield key, RenderError(f"{key!r}: {exc}")
-        spec = job_spec(intrinsics, threads, device)
+        scratch = scratch_folder(run_dir, 16 * intrinsics.width * intrinsics.height)
+        spec = job_spec(intrinsics, threads, device) | {"scratch": str(scratch)}
         run = 0
         while pending:
             job_file = run_dir / f"job_{run:03d}.json"
@@ -270,6 +309,7 @@ def _render_blender(
                     stdout=subprocess.PIPE,
                     stderr=log_file,
                     stdin=subprocess.DEVNULL,
+                    env=None if cpus is None else _pinned_env(cpus),
                     text=True,
                     errors="replace",
                 )
@@ -320,6 +360,8 @@ def _render_blender(
         if process is not None and process.poll() is None:
             process.kill()
             process.wait()
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
         if failed:  # keep only the log
             for path in run_dir.iterdir():
                 if path.is_dir():
