@@ -25,6 +25,7 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from nbv.assets.meshes import MeshError, sample_surface
@@ -267,17 +268,23 @@ def generate(settings: GenerationSettings) -> Summary:
 
 
 def run(settings: GenerationSettings, sample_settings: SampleSettings | None) -> int:
-    """Generate the shard, then its training samples; log the summary; return the exit status."""
-    summary = generate(settings)
-    report(summary)
-    if sample_settings is not None and summary.shard_file.exists() and summary.complete:
-        if samples_up_to_date(summary.shard_file, sample_settings):
-            log.info("%s: up to date", samples_path(summary.shard_file))
-        else:
-            out, skipped = write_samples(summary.shard_file, sample_settings, settings.progress)
-            log.info("%s: written", out)
-            for key, score, reason in skipped:
-                log.info("  skipped %s (%s): %s", key, score, reason)
+    """Generate the shard, then its training samples; log the summary; return the exit status.
+
+    numpy's BLAS runs one thread here and in the samples' workers (forked, they inherit it): the
+    renderer processes or the other workers already keep every core busy, and an idle OpenBLAS
+    thread spins (``sched_yield``) after each product, taking a core's share from them.
+    """
+    with threadpool_limits(limits=1, user_api="blas"):
+        summary = generate(settings)
+        report(summary)
+        if sample_settings is not None and summary.shard_file.exists() and summary.complete:
+            if samples_up_to_date(summary.shard_file, sample_settings):
+                log.info("%s: up to date", samples_path(summary.shard_file))
+            else:
+                out, skipped = write_samples(summary.shard_file, sample_settings, settings.progress)
+                log.info("%s: written", out)
+                for key, score, reason in skipped:
+                    log.info("  skipped %s (%s): %s", key, score, reason)
     return exit_status(summary)
 
 
