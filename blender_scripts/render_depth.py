@@ -20,6 +20,10 @@ The job file (JSON)::
                                                       # written (default: the job file's folder)
      "jobs": [{"key": "...", "mesh": "m.npz", "poses": "p.npy", "out": "d.npy"}, ...]}
 
+``"jobs": "stdin"`` reads the entries from stdin instead, one JSON object a line, each when the
+one before is rendered, until stdin closes: the parent hands a process its next mesh when it
+finishes one.
+
 ``mesh`` is an .npz with ``vertices`` (N, 3) and ``faces`` (F, 3) (integer indices);
 ``poses`` a .npy of (V, 4, 4) camera-to-world matrices in Blender's camera convention (the
 camera looks along its local -z, +y up: ``matrix_world``). ``out`` receives a (V, H, W) float32
@@ -36,7 +40,7 @@ makes the single sample sit at the pixel centre.
 Protocol on stdout, one line each, the only lines starting with ``NBV-``::
 
     NBV-INFO blender=<x.y.z> python=<x.y.z> numpy=<version|missing> prefix=<sys.prefix>
-             binary=<path|bpy-module> cpus=<CPUs the process may run on>
+             binary=<path|bpy-module> cpus=<CPUs it may run on> nice=<its niceness>
                                 always the first line (one line, wrapped here)
     NBV-DONE <key>              the key's depth file is complete
     NBV-FAIL <key> <reason>     the key failed; the process goes on with the next job
@@ -45,6 +49,10 @@ Protocol on stdout, one line each, the only lines starting with ``NBV-``::
                                 install); the process exits with status 2
 
 Blender's own output is sent to stderr, so it can never be taken for a protocol line.
+
+Environment, read before bpy loads (so a Blender binary, which has loaded it already, binds only
+its main thread): ``NBV_BLENDER_CPUS=0,2`` binds the process to those CPUs, ``NBV_BLENDER_NICE=10``
+lowers its priority by that much.
 """
 
 from __future__ import annotations
@@ -56,6 +64,7 @@ import shutil
 import struct
 import sys
 import tempfile
+from collections.abc import Iterator
 from typing import TextIO
 
 # Bound to its share of the CPUs before bpy starts: Blender's thread pool sizes itself to the CPUs
@@ -64,6 +73,10 @@ from typing import TextIO
 _CPUS = os.environ.get("NBV_BLENDER_CPUS", "")
 if _CPUS and hasattr(os, "sched_setaffinity"):
     os.sched_setaffinity(0, {int(cpu) for cpu in _CPUS.split(",")})
+# A lower priority than the parent's, which works on each finished mesh while the next renders.
+_NICE = os.environ.get("NBV_BLENDER_NICE", "")
+if _NICE and hasattr(os, "nice"):
+    os.nice(int(_NICE))
 
 import bpy  # noqa: E402
 
@@ -140,13 +153,35 @@ def load_job(path: str) -> dict:
             f"{path}: 'blender_versions' must be [[lowest], [first unsupported]], got {versions!r}"
         )
     jobs = spec.get("jobs")
-    if not isinstance(jobs, list):
-        raise JobError(f"{path}: 'jobs' must be a list")
-    for i, job in enumerate(jobs):
-        for key in ("key", "mesh", "poses", "out"):
-            if not isinstance(job.get(key), str):
-                raise JobError(f"{path}: jobs[{i}].{key} must be a string, got {job.get(key)!r}")
+    if jobs != "stdin" and not isinstance(jobs, list):
+        raise JobError(f"{path}: 'jobs' must be a list or \"stdin\", got {jobs!r}")
+    for i, job in enumerate(jobs if isinstance(jobs, list) else []):
+        check_entry(job, f"{path}: jobs[{i}]")
     return spec
+
+
+def check_entry(job: dict, where: str) -> None:
+    """Raise JobError unless ``job`` is a dict with the string keys of a job entry."""
+    if not isinstance(job, dict):
+        raise JobError(f"{where} must be an object, got {job!r}")
+    for key in ("key", "mesh", "poses", "out"):
+        if not isinstance(job.get(key), str):
+            raise JobError(f"{where}.{key} must be a string, got {job.get(key)!r}")
+
+
+def job_entries(spec: dict, path: str) -> Iterator[dict]:
+    """The job file's entries, or with ``"jobs": "stdin"`` one JSON entry a line of stdin, each
+    read once the one before is rendered, until stdin closes."""
+    if spec["jobs"] != "stdin":
+        yield from spec["jobs"]
+        return
+    for number, line in enumerate(sys.stdin, 1):
+        try:
+            job = json.loads(line)
+        except ValueError as exc:
+            raise JobError(f"stdin line {number} of {path}'s run is not JSON: {exc}") from None
+        check_entry(job, f"stdin line {number}")
+        yield job
 
 
 def _dotted(version) -> str:
@@ -159,9 +194,10 @@ def info_line() -> str:
     python = ".".join(str(n) for n in sys.version_info[:3])
     binary = bpy.app.binary_path or "bpy-module"
     cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    nice = os.nice(0) if hasattr(os, "nice") else 0
     return (
         f"blender={_dotted(VERSION)} python={python} numpy={numpy_version} "
-        f"prefix={sys.prefix} binary={binary} cpus={cpus}"
+        f"prefix={sys.prefix} binary={binary} cpus={cpus} nice={nice}"
     )
 
 
@@ -508,7 +544,7 @@ def main(argv: list[str]) -> int:
     tmpdir = tempfile.mkdtemp(prefix="nbv-exr-", dir=spec["scratch"])
     try:
         exr_path = os.path.join(tmpdir, "depth.exr")
-        for job in spec["jobs"]:
+        for job in job_entries(spec, args.job):
             try:
                 render_job(scene, camera, material, job, exr_path)
             except Exception as exc:  # one bad mesh must not stop the shard

@@ -261,14 +261,14 @@ def test_blender_agrees_with_raycast_and_streams(tmp_path):
 
 @pytest.mark.blender
 def test_blender_processes_render_the_same_depth(tmp_path):
-    """Two Blender processes of one thread give every mesh the depth of one process of two
-    threads, bit for bit; a key given twice is refused even when the two land in different
-    processes; nothing is left in workdir."""
+    """Two Blender processes of one thread, each replaced after every mesh (chunk=1), give
+    every mesh the depth of one process of two threads, bit for bit; a key given twice is
+    refused even when the two land in different processes; nothing is left in workdir."""
     meshes = {"sphere": _sphere(), "box": _box_at_x(), "parts": _two_parts()}
     jobs = [RenderJob(key, m.vertices, m.faces, POSES) for key, m in meshes.items()]
     jobs.append(RenderJob("box", meshes["box"].vertices, meshes["box"].faces, POSES))
     one = dict(render(jobs[:3], CAMERA, workdir=tmp_path, threads=2))
-    results = list(render(jobs, CAMERA, workdir=tmp_path, threads=1, processes=2))
+    results = list(render(jobs, CAMERA, workdir=tmp_path, threads=1, processes=2, chunk=1))
     assert sorted(k for k, _ in results) == ["box", "box", "parts", "sphere"]
     refused = [r for k, r in results if isinstance(r, RenderError)]
     assert len(refused) == 1 and "duplicate key" in str(refused[0])
@@ -338,6 +338,26 @@ def test_exr_reader_agrees_with_openexr(tmp_path):
     assert "half.exr" in found["half"] and "type 1" in found["half"]
 
 
+@pytest.mark.blender
+def test_blender_reads_the_jobs_as_it_renders(tmp_path):
+    """A process is handed its next mesh as it finishes one: when the first depth arrives, only
+    that mesh and the one held ready have been read from the jobs."""
+    box = _box_at_x()
+    taken: list[str] = []
+
+    def jobs():
+        for i in range(4):
+            taken.append(f"m{i}")
+            yield RenderJob(f"m{i}", box.vertices, box.faces, POSES[:1])
+
+    read_at_result = []
+    for key, depth in render(jobs(), CAMERA, workdir=tmp_path, threads=1):
+        read_at_result.append(len(taken))
+        assert depth.shape == (1, CAMERA.height, CAMERA.width), key
+    assert read_at_result[0] == 2 and read_at_result[-1] == 4
+    assert not any(tmp_path.iterdir())
+
+
 def _script_job(tmp_path: Path, entries: list[dict]) -> Path:
     job = {"width": 32, "height": 24, "fx": 30.0, "fy": 30.0, "cx": 15.5, "cy": 11.5}
     path = tmp_path / "job.json"
@@ -363,12 +383,13 @@ def test_blender_script_protocol(tmp_path):
         capture_output=True,
         text=True,
         timeout=120,
-        env={**os.environ, "NBV_BLENDER_CPUS": str(cpu)},
+        env={**os.environ, "NBV_BLENDER_CPUS": str(cpu), "NBV_BLENDER_NICE": "3"},
     )
     assert run.returncode == 0, run.stderr
     lines = run.stdout.splitlines()
     assert lines[0].startswith("NBV-INFO blender=5.0.1 ") and "binary=bpy-module" in lines[0]
-    assert lines[0].endswith(" cpus=1"), lines[0]  # bound to the one CPU it was given
+    # Bound to the one CPU it was given, at a priority 3 below this process's.
+    assert lines[0].endswith(f" cpus=1 nice={min(19, os.nice(0) + 3)}"), lines[0]
     assert [line.split()[:2] for line in lines[1:]] == [
         ["NBV-FAIL", "missing"],
         ["NBV-FAIL", "corrupt"],
@@ -390,7 +411,8 @@ def test_blender_script_protocol(tmp_path):
     assert run.returncode == 2
     info, fatal = run.stdout.splitlines()
     assert info.startswith("NBV-INFO ") and fatal.startswith("NBV-FATAL ") and "TPU" in fatal
-    assert info.endswith(f" cpus={len(os.sched_getaffinity(0))}")  # not bound: every CPU
+    # Not bound: every CPU, this process's priority.
+    assert info.endswith(f" cpus={len(os.sched_getaffinity(0))} nice={os.nice(0)}")
 
 
 @pytest.mark.blender

@@ -4,9 +4,10 @@ The work of one shard:
 
 1. list the source's models and keep those with ``index % num_shards == shard``;
 2. skip the models already complete (in the shard file or in a part file of an interrupted run);
-3. for the rest, batch after batch: normalise the mesh, sample the ground truth, render both
-   viewspaces (one renderer process a batch), back-project, compute coverage bits from the
-   full-resolution views, subsample the clouds, write the model's part file atomically;
+3. for the rest, one at a time as a renderer process asks for its next mesh: normalise the mesh,
+   sample the ground truth, render both viewspaces; then, as each model's depth arrives,
+   back-project, compute coverage bits from the full-resolution views, subsample the clouds,
+   write the model's part file atomically;
 4. assemble the shard file from the parts (atomically) and remove the parts.
 
 Every random draw of a model comes from a generator seeded by ``(seed, key)``, so an interrupted
@@ -20,6 +21,7 @@ import logging
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -231,34 +233,42 @@ def generate(settings: GenerationSettings) -> Summary:
         unit="model",
         disable=not settings.progress,
     )
-    with tempfile.TemporaryDirectory(prefix="nbv-render-") as workdir:
-        for start in range(0, len(todo), renderer.chunk):
-            jobs, prepared = [], {}
-            for model in todo[start : start + renderer.chunk]:
-                try:
-                    job, prepared[model.key] = _prepare(model, settings, all_poses)
-                    jobs.append(job)
-                except (MeshError, ValueError) as err:
-                    summary.failures.append((model.key, str(err)))
-                    bar.update()
-            results = render(
-                jobs, settings.intrinsics, renderer.backend, Path(workdir), **render_options
-            )
-            for key, depth in results:
-                try:
-                    if isinstance(depth, Exception):
-                        raise depth
-                    record = _finish(prepared.pop(key), depth, poses, settings)
-                    part = parts_dir / f"{key}.h5"
-                    write_part(part, root_attrs, viewspaces, record)
-                    done[key] = part
-                    summary.produced += 1
-                except RenderError as err:
-                    summary.failures.append((key, str(err)))
+    prepared: dict[str, _Prepared] = {}
+    unprepared: dict[str, str] = {}
+
+    def jobs() -> Iterator[RenderJob]:
+        """Each model's render job, prepared when a renderer process asks for its next mesh."""
+        for model in todo:
+            try:
+                job, prepared[model.key] = _prepare(model, settings, all_poses)
+            except (MeshError, ValueError) as err:
+                unprepared[model.key] = str(err)
                 bar.update()
+                continue
+            yield job
+
+    failed: dict[str, str] = {}
+    with tempfile.TemporaryDirectory(prefix="nbv-render-") as workdir:
+        results = render(
+            jobs(), settings.intrinsics, renderer.backend, Path(workdir), **render_options
+        )
+        for key, depth in results:
+            try:
+                if isinstance(depth, Exception):
+                    raise depth
+                record = _finish(prepared.pop(key), depth, poses, settings)
+                part = parts_dir / f"{key}.h5"
+                write_part(part, root_attrs, viewspaces, record)
+                done[key] = part
+                summary.produced += 1
+            except RenderError as err:
+                failed[key] = str(err)
+            bar.update()
     bar.close()
-    failed_now = {key for key, _ in summary.failures}
-    summary.failures += [(k, r) for k, r in old_failures if k not in done and k not in failed_now]
+    # In model order: the processes finish models in an order that varies from run to run.
+    failed |= unprepared
+    summary.failures = [(m.key, failed[m.key]) for m in todo if m.key in failed]
+    summary.failures += [(k, r) for k, r in old_failures if k not in done and k not in failed]
     sources = [(done[m.key], m.key) for m in mine if m.key in done]
     if sources or summary.failures:
         out_dir.mkdir(parents=True, exist_ok=True)

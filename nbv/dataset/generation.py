@@ -88,11 +88,12 @@ class Renderer:
         threads: render threads of each renderer process (0 = the cores shared evenly among
             the processes).
         device: Blender's device: ``CPU``, ``GPU`` or ``AUTO``.
-        processes: Blender processes rendering at once, each a share of a chunk's meshes
-            (0 = one per core on the CPU device, one on ``GPU`` and ``AUTO``). The depth is the
-            same bit for bit: on 2 cores two processes of one thread rendered 17 % faster than
-            one of two (:func:`nbv.render.blender.render_blender`).
-        chunk: meshes per Blender process; bounds the temporary disk and memory of one batch.
+        processes: Blender processes rendering at once, each taking the next mesh when it
+            finishes one (0 = one per core on the CPU device, one on ``GPU`` and ``AUTO``).
+            The depth is the same bit for bit: on 2 cores two processes of one thread rendered
+            17 % faster than one of two (:func:`nbv.render.blender.render_blender`).
+        chunk: meshes a Blender process renders before a new one takes over; bounds what a
+            long run leaves in one Blender's memory.
         noise: the depth-sensor model (:class:`Noise`).
     """
 
@@ -222,6 +223,7 @@ class GenerationSettings:
             "blender": r.blender,
             "device": r.device,
             "processes": processes,
+            "chunk": r.chunk,
         }
 
     @classmethod

@@ -26,7 +26,10 @@ from nbv.render.job import BACKENDS, RenderError, RenderJob
 from nbv.render.raycast import render_raycast_stream
 
 #: The options each backend takes (:func:`render`'s ``**kw``).
-OPTIONS = {"blender": {"blender", "threads", "device", "processes"}, "raycast": {"threads"}}
+OPTIONS = {
+    "blender": {"blender", "threads", "device", "processes", "chunk"},
+    "raycast": {"threads"},
+}
 
 
 def render(
@@ -44,8 +47,8 @@ def render(
         backend: "blender" (default, :func:`render_blender`) or "raycast" (:func:`render_raycast`).
         workdir: temporary folder for the Blender backend; None makes one under the system's
             temporary folder (removed afterwards unless a log had to be kept).
-        **kw: backend options: ``blender``, ``threads``, ``device``, ``processes`` for
-            "blender"; ``threads`` for "raycast".
+        **kw: backend options: ``blender``, ``threads``, ``device``, ``processes``, ``chunk``
+            for "blender"; ``threads`` for "raycast".
 
     Yields:
         ``(key, depth or RenderError)``; depth is (V, H, W) float32 planar depth, inf background.
@@ -63,7 +66,11 @@ def render(
     if workdir is not None:
         return render_blender(jobs, intrinsics, Path(workdir), **kw)
     check_options(
-        kw.get("threads", 0), kw.get("device", "CPU"), kw.get("blender"), kw.get("processes", 1)
+        kw.get("threads", 0),
+        kw.get("device", "CPU"),
+        kw.get("blender"),
+        kw.get("processes", 1),
+        kw.get("chunk", 0),
     )
     return _in_temporary_dir(jobs, intrinsics, kw)
 

@@ -12,7 +12,7 @@ import subprocess
 import sys
 import tempfile
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,9 +37,19 @@ _CAN_PIN = hasattr(os, "sched_getaffinity") and hasattr(os, "sched_setaffinity")
 RAM_FOLDER = Path("/dev/shm")
 
 
-def _pinned_env(cpus: list[int]) -> dict[str, str]:
-    """This process's environment, with the CPUs the Blender script binds itself to."""
-    return {**os.environ, "NBV_BLENDER_CPUS": ",".join(map(str, cpus))}
+#: How much lower a Blender process's priority is than this process's. The caller works on each
+#: finished mesh while the next renders; at the same priority, two renderer processes on 2
+#: cores left the dataset generator's records a minute behind when the last mesh was rendered.
+RENDERER_NICE = 10
+
+
+def _renderer_env(cpus: list[int] | None) -> dict[str, str]:
+    """This process's environment, with the priority (and the CPUs) the Blender script sets
+    itself."""
+    env = {**os.environ, "NBV_BLENDER_NICE": str(RENDERER_NICE)}
+    if cpus is not None:
+        env["NBV_BLENDER_CPUS"] = ",".join(map(str, cpus))
+    return env
 
 
 def job_spec(intrinsics: Intrinsics, threads: int, device: str) -> dict:
@@ -69,12 +79,19 @@ def scratch_folder(workdir: Path, image_bytes: int, ram: Path = RAM_FOLDER) -> P
 
 
 def check_options(
-    threads: int, device: str = "CPU", blender: str | None = None, processes: int = 1
+    threads: int,
+    device: str = "CPU",
+    blender: str | None = None,
+    processes: int = 1,
+    chunk: int = 0,
 ) -> None:
+    """Raise ValueError for a bad renderer option, FileNotFoundError for a missing binary."""
     if not isinstance(threads, int | np.integer) or threads < 0:
         raise ValueError(f"threads must be an integer >= 0 (0 = all cores), got {threads!r}")
     if isinstance(processes, bool) or not isinstance(processes, int | np.integer) or processes < 1:
         raise ValueError(f"processes must be an integer >= 1, got {processes!r}")
+    if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 0:
+        raise ValueError(f"chunk must be an integer >= 0 (0 = no limit), got {chunk!r}")
     if device not in DEVICES:
         raise ValueError(f"device must be one of {DEVICES}, got {device!r}")
     if blender is not None and shutil.which(blender) is None:
@@ -150,77 +167,58 @@ def render_blender(
     threads: int = 0,
     device: str = "CPU",
     processes: int = 1,
+    chunk: int = 0,
 ) -> Iterator[tuple[str, np.ndarray | RenderError]]:
     """Render meshes with Blender Cycles in one subprocess (or ``processes`` at once), yielding
     each as soon as it is done.
 
-    All jobs are staged into a fresh folder under ``workdir`` first (meshes as .npz, poses
-    converted to Blender's camera convention), then ``blender_scripts/render_depth.py`` renders
-    them in order in one process. If that process dies before finishing, the mesh it was
-    rendering gets a :class:`RenderError` (exit status and the tail of Blender's output) and a new
-    process renders the rest. Blender's output goes to ``blender.log`` in that folder; the folder
-    is removed at the end unless something failed, when the log is kept and named in the errors.
+    ``blender_scripts/render_depth.py`` runs in each process and reads its meshes one at a time
+    from its stdin: a process is handed the next job (staged into a fresh folder under
+    ``workdir``: the mesh as .npz, the poses in Blender's camera convention) as it finishes one,
+    so the processes share the work however long each mesh takes, and ``jobs`` is read only as
+    fast as they render. If a process dies, the mesh it was rendering gets a
+    :class:`RenderError` (exit status and the tail of Blender's output) and a new process renders
+    the rest. Blender's output goes to ``blender.log`` in that folder; the folder is removed at
+    the end unless something failed, when the log is kept and named in the errors.
 
     Args:
-        jobs: meshes with keys and OpenCV camera-to-world poses; keys must be unique.
+        jobs: meshes with keys and OpenCV camera-to-world poses; keys must be unique. Read
+            lazily (a generator may prepare each mesh when it is asked for it), from the
+            processes' threads when ``processes > 1``.
         intrinsics: the camera, shared by every view.
         workdir: folder for temporary files (created if missing).
         blender: path of a Blender executable (:data:`SUPPORTED_VERSIONS`; the script refuses
             others); None runs the script with this Python's ``bpy`` module.
         threads: CPU threads for Cycles in each process; 0 = all cores.
         device: "CPU", "GPU" (fail without one) or "AUTO" (GPU when present).
-        processes: Blender processes rendering at once, the jobs dealt out in turn. The depth
-            is the same bit for bit; on 2 cores two processes of one thread rendered 17 %
-            faster than one of two threads (65 against 79 ms a view, 2026-12-03), as a view's
-            scene update and EXR round trip run on one thread.
+        processes: Blender processes rendering at once, each bound to its share of the CPUs
+            (:func:`cpu_shares`). The depth is the same bit for bit; on 2 cores two processes
+            of one thread rendered 17 % faster than one of two threads (65 against 79 ms a
+            view, 2026-12-03), as a view's scene update and EXR round trip run on one thread.
+        chunk: meshes a process renders before a new one takes over (0 = no limit): bounds
+            what a long run leaves in one Blender's memory.
 
     Yields:
         ``(key, depth)`` with (V, H, W) float32 planar depth, ``inf`` for background, or
-        ``(key, RenderError)``: in job order (invalid jobs first) with one process, in the
-        order they finish with several.
+        ``(key, RenderError)``: an invalid job as soon as it is read, the others in job order
+        with one process, in the order they finish with several.
 
     Raises:
-        ValueError: bad ``threads``/``device``/``processes``; FileNotFoundError: ``blender``
-            not found.
+        ValueError: bad ``threads``/``device``/``processes``/``chunk``; FileNotFoundError:
+            ``blender`` not found.
     """
-    check_options(threads, device, blender, processes)
+    check_options(threads, device, blender, processes, chunk)
     if not BLENDER_SCRIPT.is_file():
         raise FileNotFoundError(f"{BLENDER_SCRIPT} is missing: nbv must run from a checkout")
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
+    source = _JobSource(jobs)
+    settings = (intrinsics, workdir, blender, threads, device)
     if processes == 1:
-        return _render_blender(jobs, intrinsics, workdir, blender, threads, device)
-    return _render_parallel(list(jobs), intrinsics, workdir, blender, threads, device, processes)
-
-
-def _render_parallel(
-    jobs: list[RenderJob],
-    intrinsics: Intrinsics,
-    workdir: Path,
-    blender: str | None,
-    threads: int,
-    device: str,
-    processes: int,
-) -> Iterator[tuple[str, np.ndarray | RenderError]]:
-    """:func:`_render_blender` streams of every ``processes``-th job, merged as they finish.
-
-    Each stream runs in a thread that only waits on its subprocess. A key given twice is
-    refused here (each stream sees only its own share of the keys)."""
-    seen: set[str] = set()
-    unique = []
-    for index, job in enumerate(jobs):
-        key = getattr(job, "key", f"#{index}")
-        if key in seen:
-            yield key, RenderError(f"{key!r}: duplicate key")
-            continue
-        seen.add(key)
-        unique.append(job)
-    shares = [unique[i::processes] for i in range(processes)]
+        return _render_blender(source, *settings, chunk=chunk)
     pins = cpu_shares(sorted(os.sched_getaffinity(0)), processes) if _CAN_PIN else None
-    streams = [_render_blender(share, intrinsics, workdir, blender, threads, device,
-                               pins[i] if pins else None)
-               for i, share in enumerate(shares) if share]  # fmt: skip
-    yield from _merged(streams)
+    return _merged([_render_blender(source, *settings, pins[i] if pins else None, chunk)
+                    for i in range(processes)])  # fmt: skip
 
 
 def cpu_shares(cpus: list[int], processes: int) -> list[list[int]]:
@@ -229,6 +227,37 @@ def cpu_shares(cpus: list[int], processes: int) -> list[list[int]]:
     if processes <= len(cpus):
         return [cpus[i::processes] for i in range(processes)]
     return [[cpus[i % len(cpus)]] for i in range(processes)]
+
+
+class _JobSource:
+    """The jobs of one :func:`render_blender` call, handed out one at a time to any number of
+    streams (threads), each key once."""
+
+    def __init__(self, jobs: Iterable[RenderJob]) -> None:
+        self._jobs = enumerate(jobs)
+        self._lock = threading.Lock()
+        self._seen: set = set()
+
+    def take(self) -> tuple[int, str, RenderJob | None, str] | None:
+        """``(index, key, job, "")`` of the next job, ``(index, key, None, why)`` for one that
+        cannot be rendered, or None when there are no more."""
+        with self._lock:
+            taken = next(self._jobs, None)
+            if taken is None:
+                return None
+            index, job = taken
+            key = getattr(job, "key", f"#{index}")
+            try:
+                if key in self._seen:
+                    return index, str(key), None, "duplicate key"
+                self._seen.add(key)
+            except TypeError as exc:  # an unhashable key; stage_job says what a key must be
+                return index, repr(key), None, str(exc)
+            return index, key, job, ""
+
+
+#: Jobs a process holds beyond the one it renders, so that it never waits for the next.
+_AHEAD = 1
 
 
 def _merged(streams: list[Iterator]) -> Iterator:
@@ -269,61 +298,125 @@ def _merged(streams: list[Iterator]) -> Iterator:
             worker.join()
 
 
+class _Process:
+    """One Blender process of a stream: the jobs given to it and not reported yet, in order."""
+
+    def __init__(self, command: list[str], log: Path, cpus: list[int] | None) -> None:
+        with open(log, "ab") as log_file:
+            self.offset = log_file.tell()
+            self.popen = subprocess.Popen(
+                command,
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=log_file,
+                env=_renderer_env(cpus),
+                text=True,
+                errors="replace",
+            )
+        self.given: list[StagedJob] = []
+        self.count = 0
+
+    def give(self, job: StagedJob) -> None:
+        """Send a job; a process that has died keeps it (it fails when its output ends)."""
+        self.given.append(job)
+        self.count += 1
+        try:
+            assert self.popen.stdin is not None
+            self.popen.stdin.write(json.dumps(job.entry()) + "\n")
+            self.popen.stdin.flush()
+        except (BrokenPipeError, ValueError):  # died, or its stdin already closed
+            pass
+
+    def close_input(self) -> None:
+        """No more jobs: the process exits once it has rendered those it holds."""
+        if self.popen.stdin is not None and not self.popen.stdin.closed:
+            try:
+                self.popen.stdin.close()
+            except BrokenPipeError:
+                pass
+
+    def kill(self) -> None:
+        if self.popen.poll() is None:
+            self.popen.kill()
+        self.popen.wait()
+        self.close_input()
+
+
 def _render_blender(
-    jobs: Iterable[RenderJob],
+    source: _JobSource,
     intrinsics: Intrinsics,
     workdir: Path,
     blender: str | None,
     threads: int,
     device: str,
     cpus: list[int] | None = None,
+    chunk: int = 0,
 ) -> Iterator[tuple[str, np.ndarray | RenderError]]:
+    """One stream: Blender processes, one after another, rendering jobs taken from ``source``."""
     run_dir = Path(tempfile.mkdtemp(prefix="blender-", dir=workdir))
     log = run_dir / "blender.log"
     failed = False
-    process: subprocess.Popen | None = None
-    pending: list[StagedJob] = []
+    process: _Process | None = None
+    retry: list[StagedJob] = []  # given to a process that died before rendering them
     scratch: Path | None = None
+    exhausted = False
+
+    def next_job() -> Generator[tuple[str, RenderError], None, StagedJob | None]:
+        """Yields the jobs that cannot be rendered; returns the next staged one, or None."""
+        nonlocal exhausted
+        if retry:
+            return retry.pop(0)
+        while not exhausted:
+            taken = source.take()
+            if taken is None:
+                exhausted = True
+                break
+            index, key, job, why = taken
+            if job is not None:
+                try:
+                    return stage_job(job, index, run_dir)
+                except (ValueError, TypeError, AttributeError) as exc:
+                    why = str(exc)
+            yield key, RenderError(f"{key!r}: {why}")
+        return None
+
+    def fill(process: _Process) -> Generator[tuple[str, RenderError], None, None]:
+        """Give the process jobs up to :data:`_AHEAD` beyond the one it renders; close its input
+        when there are no more, or when it has had ``chunk``."""
+        while len(process.given) <= _AHEAD and not (chunk and process.count >= chunk):
+            job = yield from next_job()
+            if job is None:
+                break
+            process.give(job)
+        if (chunk and process.count >= chunk) or (exhausted and not retry):
+            process.close_input()
+
     try:
-        seen: set[str] = set()
-        for index, job in enumerate(jobs):
-            try:
-                if job.key in seen:
-                    raise ValueError("duplicate key")
-                pending.append(stage_job(job, index, run_dir))
-                seen.add(job.key)
-            except (ValueError, TypeError, AttributeError) as exc:
-                key = getattr(job, "key", f"#{index}")
-                yield key, RenderError(f"{key!r}: {exc}")
         scratch = scratch_folder(run_dir, 16 * intrinsics.width * intrinsics.height)
-        spec = job_spec(intrinsics, threads, device) | {"scratch": str(scratch)}
+        spec = job_spec(intrinsics, threads, device) | {"scratch": str(scratch), "jobs": "stdin"}
+        job_file = run_dir / "job.json"
+        job_file.write_text(json.dumps(spec))
         run = 0
-        while pending:
-            job_file = run_dir / f"job_{run:03d}.json"
-            job_file.write_text(json.dumps(spec | {"jobs": [p.entry() for p in pending]}))
-            with open(log, "ab") as log_file:
-                log_file.write(f"=== run {run}: {len(pending)} meshes ===\n".encode())
-                offset = log_file.tell()
-                process = subprocess.Popen(
-                    blender_command(blender, job_file),
-                    stdout=subprocess.PIPE,
-                    stderr=log_file,
-                    stdin=subprocess.DEVNULL,
-                    env=None if cpus is None else _pinned_env(cpus),
-                    text=True,
-                    errors="replace",
-                )
+        while True:
+            first = yield from next_job()
+            if first is None:
+                break
+            with open(log, "a") as log_file:
+                log_file.write(f"=== run {run} ===\n")
+            process = _Process(blender_command(blender, job_file), log, cpus)
+            process.give(first)
+            yield from fill(process)
             fatal = None
-            assert process.stdout is not None
-            for line in process.stdout:
+            assert process.popen.stdout is not None
+            for line in process.popen.stdout:
                 if line.startswith("NBV-FATAL "):
                     fatal = line[len("NBV-FATAL ") :].strip()
                     continue
-                if not line.startswith(("NBV-DONE ", "NBV-FAIL ")) or not pending:
+                if not line.startswith(("NBV-DONE ", "NBV-FAIL ")) or not process.given:
                     with open(log, "a") as log_file:
                         log_file.write(line)
                     continue
-                job = pending[0]
+                job = process.given[0]
                 tag, rest = line.rstrip("\n").split(" ", 1)
                 if rest != job.key and not rest.startswith(job.key + " "):
                     raise RenderError(f"Blender reported {rest!r} while {job.key!r} was expected")
@@ -333,20 +426,20 @@ def _render_blender(
                     failed = True
                     result = RenderError(f"{job.key!r}: {rest[len(job.key) :].strip()}")
                 job.remove()
-                pending.pop(0)
+                process.given.pop(0)
                 yield job.key, result
-            status = process.wait()
+                yield from fill(process)
+            status = process.popen.wait()
+            process.close_input()
+            left, offset = process.given, process.offset
             process = None
-            if not pending:
-                break
+            if not left:
+                continue
             failed = True
             if fatal is not None:
-                for job in pending:
-                    job.remove()
-                    yield job.key, RenderError(f"{job.key!r}: Blender could not start: {fatal}")
-                pending.clear()
+                yield from _fail_all(left, retry, next_job, f"Blender could not start: {fatal}")
                 break
-            job = pending.pop(0)
+            job = left.pop(0)
             job.remove()
             yield (
                 job.key,
@@ -355,11 +448,11 @@ def _render_blender(
                     f"log {log}, last lines:\n{_log_tail(log, offset)}"
                 ),
             )
+            retry[:0] = left
             run += 1
     finally:
-        if process is not None and process.poll() is None:
+        if process is not None:
             process.kill()
-            process.wait()
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)
         if failed:  # keep only the log
@@ -370,3 +463,20 @@ def _render_blender(
                     path.unlink()
         else:
             shutil.rmtree(run_dir, ignore_errors=True)
+
+
+def _fail_all(
+    given: list[StagedJob], retry: list[StagedJob], next_job: Callable, why: str
+) -> Iterator[tuple[str, RenderError]]:
+    """Fail every job of a stream whose Blender cannot start: those it was given, then every
+    other the stream can take (each process would fail the same way)."""
+    for job in given + retry:
+        job.remove()
+        yield job.key, RenderError(f"{job.key!r}: {why}")
+    retry.clear()
+    while True:
+        job = yield from next_job()
+        if job is None:
+            return
+        job.remove()
+        yield job.key, RenderError(f"{job.key!r}: {why}")
