@@ -358,6 +358,25 @@ def test_blender_reads_the_jobs_as_it_renders(tmp_path):
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.blender
+def test_blender_processes_wait_for_a_slow_consumer(tmp_path):
+    """Two processes whose consumer lags stop asking for meshes: at most 2 queued results a
+    process, and each holds one rendered and one waiting mesh, so 9 of 20 are read at most."""
+    box = _box_at_x()
+    taken: list[str] = []
+
+    def jobs():
+        for i in range(20):
+            taken.append(f"m{i}")
+            yield RenderJob(f"m{i}", box.vertices, box.faces, POSES[:1])
+
+    results = render(jobs(), CAMERA, workdir=tmp_path, threads=1, processes=2)
+    next(results)
+    time.sleep(3)  # unbounded, two processes render the 19 others of 1 view each meanwhile
+    assert len(taken) <= 9, taken
+    assert len(list(results)) == 19 and len(taken) == 20
+
+
 def _script_job(tmp_path: Path, entries: list[dict]) -> Path:
     job = {"width": 32, "height": 24, "fx": 30.0, "fy": 30.0, "cx": 15.5, "cy": 11.5}
     path = tmp_path / "job.json"
