@@ -10,6 +10,7 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -338,20 +339,21 @@ def test_exr_reader_agrees_with_openexr(tmp_path):
     assert "half.exr" in found["half"] and "type 1" in found["half"]
 
 
+def _counted_boxes(count: int, taken: list[str]) -> Iterator[RenderJob]:
+    """``count`` one-view box jobs, each key appended to ``taken`` as the job is read."""
+    box = _box_at_x()
+    for i in range(count):
+        taken.append(f"m{i}")
+        yield RenderJob(f"m{i}", box.vertices, box.faces, POSES[:1])
+
+
 @pytest.mark.blender
 def test_blender_reads_the_jobs_as_it_renders(tmp_path):
     """A process is handed its next mesh as it finishes one: when the first depth arrives, only
     that mesh and the one held ready have been read from the jobs."""
-    box = _box_at_x()
     taken: list[str] = []
-
-    def jobs():
-        for i in range(4):
-            taken.append(f"m{i}")
-            yield RenderJob(f"m{i}", box.vertices, box.faces, POSES[:1])
-
     read_at_result = []
-    for key, depth in render(jobs(), CAMERA, workdir=tmp_path, threads=1):
+    for key, depth in render(_counted_boxes(4, taken), CAMERA, workdir=tmp_path, threads=1):
         read_at_result.append(len(taken))
         assert depth.shape == (1, CAMERA.height, CAMERA.width), key
     assert read_at_result[0] == 2 and read_at_result[-1] == 4
@@ -362,15 +364,8 @@ def test_blender_reads_the_jobs_as_it_renders(tmp_path):
 def test_blender_processes_wait_for_a_slow_consumer(tmp_path):
     """Two processes whose consumer lags stop asking for meshes: at most 2 queued results a
     process, and each holds one rendered and one waiting mesh, so 9 of 20 are read at most."""
-    box = _box_at_x()
     taken: list[str] = []
-
-    def jobs():
-        for i in range(20):
-            taken.append(f"m{i}")
-            yield RenderJob(f"m{i}", box.vertices, box.faces, POSES[:1])
-
-    results = render(jobs(), CAMERA, workdir=tmp_path, threads=1, processes=2)
+    results = render(_counted_boxes(20, taken), CAMERA, workdir=tmp_path, threads=1, processes=2)
     next(results)
     time.sleep(3)  # unbounded, two processes render the 19 others of 1 view each meanwhile
     assert len(taken) <= 9, taken
