@@ -237,3 +237,28 @@ def test_signature_reconstructs_a_band_limited_shape():
     np.testing.assert_allclose(
         np.linalg.norm(signature(pts, 0), axis=1), np.linalg.norm(pts, axis=1).mean(), rtol=1e-6
     )
+
+
+@pytest.mark.parametrize("lmax", [0, 1, 2, 3, 6])
+def test_compiled_design_columns_equal_the_array_recurrences_bit_for_bit(lmax):
+    # The fit's design is built point by point in numba; its values must be those of the numpy
+    # recurrences exactly (the signatures the shipped networks were trained and evaluated on).
+    from nbv.geometry.sph import (
+        _design_columns,
+        _harmonics_rows,
+        _recurrence_constants,
+        _unit_offsets,
+    )
+
+    rng = np.random.default_rng(lmax)
+    coords = rng.normal(size=(3, 5000)) * rng.uniform(0.01, 10.0) + rng.normal(size=(3, 1))
+    centre = coords.mean(axis=1)
+    coords[:, [5, 4000]] = centre[:, None]  # two points at the centre: skipped
+    k = (lmax + 1) ** 2
+    design = np.full((k + 1, 6000), np.nan)
+    used = _design_columns(coords, 3, 4999, centre, *_recurrence_constants(lmax), design)
+    x, y, z, r = _unit_offsets(coords[:, 3:4999], centre)
+    assert used == len(r) == 4994
+    assert np.array_equal(design[:k, :used], _harmonics_rows(lmax, x, y, z))
+    assert np.array_equal(design[k, :used], r)
+    assert np.isnan(design[:, used:]).all()  # nothing written past the points used

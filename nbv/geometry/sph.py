@@ -41,6 +41,9 @@ The harmonics are computed from unit vectors by recurrences on ``cos theta = z``
 
 from __future__ import annotations
 
+from functools import lru_cache
+
+import numba
 import numpy as np
 
 _INV_SQRT_4PI = 1.0 / np.sqrt(4.0 * np.pi)
@@ -191,16 +194,11 @@ def _center_of(coords: np.ndarray, center: np.ndarray | None) -> np.ndarray:
     return c
 
 
-def _block_sizes(n_harmonics: int) -> tuple[int, int]:
-    """Columns per elementwise chunk and per BLAS block of the design matrix.
-
-    Elementwise work runs on chunks whose temporaries stay in cache (about twice as fast as
-    whole-cloud arrays on a memory-bound CPU); the normal equations are accumulated over blocks
-    of about 4 MB of design so that BLAS is called a few times only.
-    """
-    chunk = 4096
-    block = max(1, 2**19 // (n_harmonics * chunk)) * chunk
-    return chunk, block
+def _block_size(n_harmonics: int) -> int:
+    """Columns per BLAS block of the design matrix: the normal equations are accumulated over
+    blocks of about 4 MB of design, so that BLAS is called a few times only. (A multiple of
+    4,096 columns: the blocks, and so the sums' rounding, are those of the fits before.)"""
+    return max(1, 2**19 // (n_harmonics * 4096)) * 4096
 
 
 def _unit_offsets(
@@ -237,6 +235,116 @@ def fit(points: np.ndarray, lmax: int, center: np.ndarray | None = None) -> np.n
     return _fit_coords(_as_coords(points), _check_lmax(lmax), center)
 
 
+@lru_cache(maxsize=16)
+def _recurrence_constants(lmax: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The (read-only) scalars of :func:`_harmonics_rows`'s recurrences, computed as it does:
+    ``q_mm`` and ``sqrt(2 m + 3) q_mm`` (each ``(lmax + 1,)``), and ``a`` and ``a b`` of degree
+    ``l`` and order ``m`` (each ``(lmax + 1, lmax + 1)``, indexed ``[m, l]``, used for
+    ``l > m + 1``)."""
+    q_mm = np.empty(lmax + 1)
+    first = np.empty(lmax + 1)
+    a_ml = np.zeros((lmax + 1, lmax + 1))
+    ab_ml = np.zeros((lmax + 1, lmax + 1))
+    q = _INV_SQRT_4PI
+    for m in range(lmax + 1):
+        if m == 1:
+            q *= np.sqrt(1.5) * _SQRT2
+        elif m > 1:
+            q *= np.sqrt((2.0 * m + 1.0) / (2.0 * m))
+        q_mm[m], first[m] = q, np.sqrt(2.0 * m + 3.0) * q
+        for l in range(m + 2, lmax + 1):  # noqa: E741
+            a = np.sqrt((4.0 * l * l - 1.0) / (l * l - m * m))
+            b = np.sqrt(((l - 1.0) ** 2 - m * m) / (4.0 * (l - 1.0) ** 2 - 1.0))
+            a_ml[m, l], ab_ml[m, l] = a, a * b
+    return _read_only(q_mm, first, a_ml, ab_ml)
+
+
+def _read_only(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+    """``arrays``, made read-only: a cached value must not be changed by a caller."""
+    for a in arrays:
+        a.flags.writeable = False
+    return arrays
+
+
+#: Points a pass of :func:`_design_columns` works on: its eight temporaries (128 KB) stay in
+#: the cache.
+_DESIGN_CHUNK = 2048
+
+
+@numba.njit(cache=True, nogil=True)
+def _design_columns(coords, start, stop, center, q_mm, first, a_ml, ab_ml, out):  # pragma: no cover
+    """The design ``out`` ((lmax + 1)^2 + 1, block) of the points ``start:stop`` of ``coords``
+    (3, N) about ``center``: a column per point, the harmonics of its direction, then its
+    radius; points at the centre are skipped. Returns the number of columns written.
+
+    Every value is the one :func:`_unit_offsets` and :func:`_harmonics_rows` compute, bit for
+    bit: the same IEEE operations in the same order, fused into a few loops over cached chunks
+    of points (numba reassociates nothing and contracts no multiply-add into an FMA unless
+    asked to).
+    """
+    lmax = len(q_mm) - 1
+    k = (lmax + 1) * (lmax + 1)
+    size = min(_DESIGN_CHUNK, stop - start)
+    x, y, z, r = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
+    c_m, s_m, q_l1, q_l2 = np.empty(size), np.empty(size), np.empty(size), np.empty(size)
+    o = 0
+    for begin in range(start, stop, size):
+        n = min(size, stop - begin)
+        for i in range(n):
+            x[i] = coords[0, begin + i] - center[0]
+            y[i] = coords[1, begin + i] - center[1]
+            z[i] = coords[2, begin + i] - center[2]
+            r[i] = np.sqrt(x[i] * x[i] + y[i] * y[i] + z[i] * z[i])
+        used = 0
+        for i in range(n):
+            if r[i] != 0.0:
+                x[used], y[used], z[used], r[used] = x[i], y[i], z[i], r[i]
+                used += 1
+        for i in range(used):
+            inv_r = 1.0 / r[i]
+            x[i] = x[i] * inv_r
+            y[i] = y[i] * inv_r
+            z[i] = z[i] * inv_r
+            out[k, o + i] = r[i]
+        for m in range(lmax + 1):
+            if m == 1:
+                c_m[:used] = x[:used]
+                s_m[:used] = y[:used]
+            elif m > 1:
+                for i in range(used):
+                    c, s = c_m[i], s_m[i]
+                    c_m[i] = x[i] * c - y[i] * s
+                    s_m[i] = x[i] * s + y[i] * c
+            q = q_mm[m]
+            for l in range(m, lmax + 1):  # noqa: E741
+                row_c, row_s = out[l * l + l + m], out[l * l + l - m]
+                if l == m:
+                    if m == 0:
+                        row_c[o : o + used] = q
+                    else:
+                        for i in range(used):
+                            row_c[o + i] = q * c_m[i]
+                            row_s[o + i] = q * s_m[i]
+                    continue
+                f, a, ab = first[m], a_ml[m, l], ab_ml[m, l]
+                for i in range(used):
+                    if l == m + 1:
+                        q_l = f * z[i]
+                    elif l == m + 2:
+                        q_l = a * z[i] * q_l1[i] - ab * q
+                    else:
+                        q_l = a * z[i] * q_l1[i] - ab * q_l2[i]
+                    q_l2[i] = q_l1[i]
+                    q_l1[i] = q_l
+                    if m == 0:
+                        row_c[o + i] = q_l
+                    else:
+                        row_c[o + i] = q_l * c_m[i]
+                        row_s[o + i] = q_l * s_m[i]
+        o += used
+    return o
+
+
 def _fit_coords(coords: np.ndarray, lmax: int, center: np.ndarray | None) -> np.ndarray:
     """:func:`fit` on ``(3, N)`` contiguous float64 coordinates."""
     c = _center_of(coords, center)
@@ -244,16 +352,13 @@ def _fit_coords(coords: np.ndarray, lmax: int, center: np.ndarray | None) -> np.
     # Normal equations accumulated block by block: the design matrix is never held whole.
     # The radii ride along as an extra design row: one product gives both A A^T and A r.
     normal = np.zeros((k + 1, k + 1))
-    chunk, block = _block_sizes(k + 1)
+    block = _block_size(k + 1)
     design = np.empty((k + 1, block))
+    constants = _recurrence_constants(lmax)
     n_used = 0
-    for block_start in range(0, coords.shape[1], block):
-        filled = 0
-        for start in range(block_start, min(block_start + block, coords.shape[1]), chunk):
-            x, y, z, r = _unit_offsets(coords[:, start : start + chunk], c)
-            _harmonics_rows(lmax, x, y, z, out=design[:k, filled : filled + len(r)])
-            design[k, filled : filled + len(r)] = r
-            filled += len(r)
+    for start in range(0, coords.shape[1], block):
+        stop = min(start + block, coords.shape[1])
+        filled = _design_columns(coords, start, stop, c, *constants, design)
         rows = design[:, :filled]
         normal += rows @ rows.T
         n_used += filled
@@ -324,9 +429,18 @@ def signature_with_centroid(points: np.ndarray, lmax: int = 3) -> tuple[np.ndarr
     coords = _as_coords(points)
     centroid = coords.mean(axis=1)
     coeffs = _fit_coords(coords, lmax, centroid)
-    dirs = unit_vectors(*equiangular_directions(lmax))
-    radius = real_sph_harm_dirs(lmax, dirs) @ coeffs
+    dirs, harmonics = _signature_grid(lmax)
+    radius = harmonics @ coeffs
     return (radius[:, None] * dirs).astype(np.float32), centroid
+
+
+@lru_cache(maxsize=16)
+def _signature_grid(lmax: int) -> tuple[np.ndarray, np.ndarray]:
+    """The (read-only) unit directions ``(4 (lmax + 1)^2, 3)`` of
+    :func:`equiangular_directions` and their harmonics ``(4 (lmax + 1)^2, (lmax + 1)^2)``:
+    the same for every cloud, so computed once a degree."""
+    dirs = unit_vectors(*equiangular_directions(lmax))
+    return _read_only(dirs, real_sph_harm_dirs(lmax, dirs))
 
 
 def signature(points: np.ndarray, lmax: int = 3) -> np.ndarray:
