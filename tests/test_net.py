@@ -16,7 +16,7 @@ import torch
 from nbv.models.checkpoints import CheckpointError, load_checkpoint, save_checkpoint
 from nbv.models.config import PCNBVConfig
 from nbv.models.inference import for_inference, masked_argmax
-from nbv.models.layers import DenseEdgeConv, max_over
+from nbv.models.layers import DenseEdgeConv, max_over, max_over_neighbours
 from nbv.models.neighbours import knn_indices, smallest_indices
 from nbv.models.pcnbv import PCNBV, count_parameters
 from nbv.models.precision import autocast, flush_denormals, resolve_precision
@@ -174,7 +174,8 @@ def test_knn_indices_match_brute_force() -> None:
 
 def test_smallest_indices_select_what_topk_selects() -> None:
     g = torch.Generator().manual_seed(2)
-    for shape, k in (((3, 40, 512), 16), ((700, 64), 4), ((2, 5, 30), 6), ((4, 16), 16)):
+    for shape, k in (((3, 40, 512), 16), ((700, 64), 4), ((2, 5, 30), 6), ((4, 16), 16),
+                     ((30, 64), 16)):  # fmt: skip
         values = torch.randn(*shape, generator=g)
         values[..., 7] = -math.inf  # the forced self-distance
         values[..., :3] = torch.round(values[..., :3])  # ties, also at the k-th place
@@ -190,6 +191,17 @@ def test_smallest_indices_select_what_topk_selects() -> None:
     expected = values.topk(16, dim=-1, largest=False).values
     assert torch.equal(values.gather(-1, idx).sort(-1).values, expected)
     assert (idx.sort(-1).values.diff(dim=-1) > 0).all()
+
+
+def test_max_over_neighbours_is_amax_over_the_neighbour_axis() -> None:
+    g = torch.Generator().manual_seed(5)
+    for k in (1, 2, 3, 7, 16, 17):  # odd sizes leave one entry over at some halving
+        x = torch.randn(2, 9, k, 12, generator=g)
+        x[0, 0, -1, 0] = 50.0  # the maximum in the last entry
+        assert torch.equal(max_over_neighbours(x), x.amax(2))
+    x = torch.randn(2, 3, 5, 4, generator=g, requires_grad=True)
+    max_over_neighbours(x).sum().backward()
+    assert torch.equal(x.grad.sum(2), torch.ones(2, 3, 4))  # one max a channel gets the gradient
 
 
 def test_knn_of_batches_searched_in_groups_match_brute_force() -> None:

@@ -44,6 +44,25 @@ def max_over(x: Tensor, dim: int, keepdim: bool = False) -> Tensor:
     return x.amax(dim=dim, keepdim=keepdim)
 
 
+def max_over_neighbours(x: Tensor) -> Tensor:
+    """The max over the neighbour axis of edge features: (B, N, k, C) -> (B, N, C), the values
+    of ``max_over(x, 2)``.
+
+    Without autograd the axis is halved by element-wise maxima (``log2 k`` of them): torch's
+    reduction runs its few (16) entries with the narrow channel axis (12) innermost at about a
+    sixth of the speed (0.76 ms against 0.13 for 4 x 512 points, one thread).
+    """
+    if x.requires_grad and torch.is_grad_enabled():
+        return max_over(x, 2)
+    while x.shape[2] > 1:
+        half = x.shape[2] // 2
+        pairs = torch.maximum(x[:, :, :half], x[:, :, half : 2 * half])
+        if x.shape[2] % 2:
+            torch.maximum(pairs[:, :, :1], x[:, :, 2 * half :], out=pairs[:, :, :1])
+        x = pairs
+    return x[:, :, 0]
+
+
 class DenseEdgeConv(nn.Module):
     """A dense EdgeConv block (PU-GAN style): (B, N, C) -> (B, N, layers * growth + C).
 
@@ -78,7 +97,7 @@ class DenseEdgeConv(nn.Module):
             edges = hs[0] if len(hs) == 1 else torch.cat(hs[::-1], dim=-1)
             pre = edges @ w[:, :-c].T + F.linear(x, w[:, -c:], layer.linear.bias).unsqueeze(2)
             hs.append(layer.activate(pre))
-        return torch.cat([max_over(h, 2) for h in reversed(hs)] + [x], dim=-1)
+        return torch.cat([max_over_neighbours(h) for h in reversed(hs)] + [x], dim=-1)
 
 
 class FeatureExtractor(nn.Module):

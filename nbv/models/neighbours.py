@@ -61,14 +61,15 @@ def smallest_indices(values: Tensor, k: int, group: int = 4) -> Tensor:
     Args:
         values: (..., M) float tensor, M >= k; entries may be -inf but not NaN.
         k: entries a row.
-        group: entries a group; rows with fewer than ``k`` whole groups use ``topk`` directly.
+        group: entries a group; rows of at most ``k`` whole groups use ``topk`` directly.
 
     Returns:
         (..., k) int64 indices into the last axis, in no particular order.
     """
     m = values.shape[-1]
     n_groups = m // group
-    if n_groups < k or values.device.type != "cpu":
+    # With k groups or fewer every group is a candidate: the grouping would only add work.
+    if n_groups <= k or values.device.type != "cpu":
         return values.topk(k, dim=-1, largest=False, sorted=False).indices
     rows = values.reshape(-1, m)
     grouped = n_groups * group
