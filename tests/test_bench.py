@@ -100,15 +100,18 @@ def test_network_rows_are_well_formed_on_tiny_networks(tmp_path):
         "tiny-sph 9-view episode (sampling + forwards)",
         "tiny episodes, 3 in lockstep, float32 (per episode)",
         "tiny-sph episodes, 3 in lockstep, float32 (per episode)",
+        "tiny episodes, 3 in lockstep, float32, 1 thread as an evaluation worker (per episode)",
+        "tiny-sph episodes, 3 in lockstep, float32, 1 thread as an evaluation worker (per episode)",
         "tiny 9-view episode beside a busy process",
         "tiny-sph 9-view episode beside a busy process",
     ]
     for r in rows:
         assert r["ours"] > 0 and r["reference"] > 0
         assert r["ratio"] == pytest.approx(r["reference"] / r["ours"])
-    for r in rows[2:4]:
+    for r in rows[2:6]:
         assert 0 < r["floor"] < r["ours"] and "FLOP floor" in r["note"]
-    for r in rows[4:]:
+    assert "1 core x" in rows[4]["note"]
+    for r in rows[6:]:
         assert r["slowdown"] == pytest.approx(r["ours"] / r["reference"])
         assert r["target"] == pytest.approx(LOAD_TARGET * r["reference"])
     assert "| tiny episodes, 3 in lockstep" in format_table(rows)

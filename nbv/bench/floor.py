@@ -87,7 +87,8 @@ class Peak:
     def formula(self) -> str:
         """``cores x GHz x lanes x 2 x 2 = GFLOP/s``, as the bench's note prints it."""
         return (
-            f"{self.cores} cores x {self.ghz:.2f} GHz x {self.lanes} lanes x 2 (FMA) x 2 pipes "
+            f"{self.cores} core{'s' * (self.cores != 1)} x {self.ghz:.2f} GHz x {self.lanes} "
+            "lanes x 2 (FMA) x 2 pipes "
             f"= {self.flops / 1e9:.0f} GFLOP/s"
         )
 

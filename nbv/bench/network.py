@@ -149,14 +149,33 @@ def _policy(checkpoint: Path, n_views: int, precision: str):
     return NetworkPolicy.from_checkpoint(checkpoint, n_views, precision=precision)
 
 
+@contextmanager
+def torch_threads(threads: int | None) -> Iterator[None]:
+    """torch's intra-op threads set to ``threads`` for the block (None: left as they are), and
+    restored after."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads or before)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
 def batched_seconds(
-    views: Sequence[np.ndarray], checkpoint: Path, starts: Sequence[int], repeat: int = 3
+    views: Sequence[np.ndarray],
+    checkpoint: Path,
+    starts: Sequence[int],
+    repeat: int = 3,
+    threads: int | None = None,
 ) -> dict[str, float]:
     """Seconds an episode in float32, for the episodes of ``starts`` in lockstep with one batched
     forward a step (``"batched"``, the whole over the number of episodes) and one at a time
-    (``"single"``, their mean), best of ``repeat``; ``"forward_flops"``: FLOPs of one forward
-    pass of one sample as the evaluator runs it (:func:`nbv.bench.floor.inference_flops`), and
-    ``"written_flops"`` of the network as written (:func:`nbv.bench.floor.pcnbv_flops`).
+    (``"single"``, their mean), best of ``repeat``, on ``threads`` torch threads (None: the
+    process's); ``"forward_flops"``: FLOPs of one forward pass of one sample as the evaluator
+    runs it (:func:`nbv.bench.floor.inference_flops`), and ``"written_flops"`` of the network
+    as written (:func:`nbv.bench.floor.pcnbv_flops`).
 
     Raises:
         AssertionError: the two ways chose different views.
@@ -172,7 +191,7 @@ def batched_seconds(
     def single() -> list[list[int]]:
         return [network_episode(policy.decide, views, s) for s in starts]
 
-    with threadpool_limits(limits=1, user_api="blas"):
+    with threadpool_limits(limits=1, user_api="blas"), torch_threads(threads):
         if batched() != single():  # also the warm-up
             raise AssertionError("batched and one-at-a-time episodes chose different views")
         out = {name: best_time(fn, repeat, np.inf) / n for name, fn in
@@ -232,12 +251,13 @@ def network_rows(
     """The network rows of ``make bench`` for each ``(name, checkpoint, target seconds)`` of
     ``episodes``: the 9-view episode against the plain float32 network, the episodes of
     ``starts`` batched against one at a time (float32) beside the FLOP floor of this machine
-    (:mod:`nbv.bench.floor`), and the episode beside a busy process against the quiet machine.
+    (:mod:`nbv.bench.floor`), on the process's torch threads and on one (as an evaluation
+    worker runs them: one worker a core), and the episode beside a busy process against the
+    quiet machine.
     Rows: dicts of name, ours, reference, ratio, target (seconds), note; the batched rows also
     ``floor`` (seconds an episode), the load rows ``slowdown``."""
     from nbv.bench.floor import peak_flops
 
-    peak = peak_flops()
     rows = []
     for name, weights, target in episodes:
         t = episode_seconds(views, weights, repeat=max(repeat, 1))
@@ -246,19 +266,23 @@ def network_rows(
             reference=t["reference"], ratio=t["reference"] / t["ours"], target=target,
             note=f"inference copy vs plain float32 network, weights {weights.name}",
         ))  # fmt: skip
-    for name, weights, target in episodes:
-        t = batched_seconds(views, weights, starts, repeat)
-        floor, written = ((EPISODE_VIEWS - 1) * t[k] / peak.flops
-                          for k in ("forward_flops", "written_flops"))  # fmt: skip
-        rows.append(dict(
-            name=f"{name} episodes, {len(starts)} in lockstep, float32 (per episode)",
-            ours=t["batched"], reference=t["single"], ratio=t["single"] / t["batched"],
-            target=target, floor=floor, floor_as_written=written,
-            note=f"one batched forward a step vs one at a time; FLOP floor {floor * 1e3:.0f} ms "
-            f"= {EPISODE_VIEWS - 1} x {t['forward_flops'] / 1e9:.3g} GFLOP / ({peak.formula()}); "
-            f"the network as written: {t['written_flops'] / 1e9:.3g} GFLOP, "
-            f"{written * 1e3:.0f} ms",
-        ))  # fmt: skip
+    # On the process's threads, and on one as each evaluation worker runs (one worker a core).
+    for threads in (None, 1):
+        peak = peak_flops(cores=threads)
+        on = "" if threads is None else f", {threads} thread as an evaluation worker"
+        for name, weights, target in episodes:
+            t = batched_seconds(views, weights, starts, repeat, threads)
+            floor, written = ((EPISODE_VIEWS - 1) * t[k] / peak.flops
+                              for k in ("forward_flops", "written_flops"))  # fmt: skip
+            rows.append(dict(
+                name=f"{name} episodes, {len(starts)} in lockstep, float32{on} (per episode)",
+                ours=t["batched"], reference=t["single"], ratio=t["single"] / t["batched"],
+                target=target, floor=floor, floor_as_written=written,
+                note=f"one batched forward a step vs one at a time; FLOP floor "
+                f"{floor * 1e3:.0f} ms = {EPISODE_VIEWS - 1} x {t['forward_flops'] / 1e9:.3g} "
+                f"GFLOP / ({peak.formula()}); the network as written: "
+                f"{t['written_flops'] / 1e9:.3g} GFLOP, {written * 1e3:.0f} ms",
+            ))  # fmt: skip
     for name, weights, _ in episodes:
         t = load_seconds(views, weights, repeat=repeat)
         slowdown = t["busy"] / t["quiet"]
