@@ -9,7 +9,8 @@ Modules, each importing only the ones above it:
 - :mod:`nbv.models.neighbours`: k-nearest-neighbour search in feature space
   (:func:`knn_indices`), a fast CPU top-k (:func:`smallest_indices`), :func:`gather_neighbours`.
 - :mod:`nbv.models.config`: :class:`PCNBVConfig`, the sizes of a network (no torch).
-- :mod:`nbv.models.layers`: 1x1 convs, :func:`max_over`, :class:`DenseEdgeConv`,
+- :mod:`nbv.models.layers`: 1x1 convs, :func:`max_over`, :func:`max_over_neighbours`,
+  :class:`DenseEdgeConv`,
   :class:`FeatureExtractor`, :class:`SelfAttention`.
 - :mod:`nbv.models.pcnbv`: :class:`PCNBV`, the PC-NBV network (also PCNBV-sph), and
   :func:`count_parameters`.
