@@ -10,8 +10,7 @@ Modules, each importing only the ones above it:
   (:func:`knn_indices`), a fast CPU top-k (:func:`smallest_indices`), :func:`gather_neighbours`.
 - :mod:`nbv.models.config`: :class:`PCNBVConfig`, the sizes of a network (no torch).
 - :mod:`nbv.models.layers`: 1x1 convs, :func:`max_over`, :func:`max_over_neighbours`,
-  :class:`DenseEdgeConv`,
-  :class:`FeatureExtractor`, :class:`SelfAttention`.
+  :class:`DenseEdgeConv`, :class:`FeatureExtractor`, :class:`SelfAttention`.
 - :mod:`nbv.models.pcnbv`: :class:`PCNBV`, the PC-NBV network (also PCNBV-sph), and
   :func:`count_parameters`.
 - :mod:`nbv.models.inference`: :func:`for_inference` (batch norm folded; in float32 the
