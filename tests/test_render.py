@@ -27,7 +27,13 @@ from nbv.geometry.camera import (
 )
 from nbv.geometry.viewspace import original_viewspace
 from nbv.render.backends import render
-from nbv.render.blender import BLENDER_SCRIPT, cpu_shares, render_blender, scratch_folder
+from nbv.render.blender import (
+    BLENDER_SCRIPT,
+    cpu_shares,
+    remove_orphans,
+    render_blender,
+    scratch_folder,
+)
 from nbv.render.job import RenderError, RenderJob
 from nbv.render.noise import DepthNoise, incidence_angles, noisy_depth
 from nbv.render.raycast import render_raycast
@@ -293,6 +299,38 @@ def test_scratch_folder_is_in_ram_only_with_room(tmp_path):
     assert scratch_folder(work, 1, ram=ram).parent == ram
     assert scratch_folder(work, 1 << 60, ram=ram).parent == work  # no room for 16 images
     assert scratch_folder(work, 1, ram=tmp_path / "absent").parent == work
+    assert scratch_folder(work, 1, ram=ram).name.startswith(f"nbv-exr-{os.getpid()}-")
+
+
+def test_scratch_folders_of_dead_processes_are_removed_once_old(tmp_path):
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()  # reaped: its id names no process now
+    hour_ago = time.time() - 3700
+
+    def folder(name: str, age: float | None = hour_ago) -> Path:
+        path = tmp_path / name
+        (path / "nbv-exr-inner").mkdir(parents=True)
+        exr = path / "nbv-exr-inner" / "depth.exr"
+        exr.write_bytes(b"x")
+        if age is not None:
+            for p in (exr, exr.parent, path):
+                os.utime(p, (age, age))
+        return path
+
+    orphan = folder(f"nbv-exr-{dead.pid}-abc")
+    fresh = folder(f"nbv-exr-{dead.pid}-def", age=None)  # its process may be in another namespace
+    mine = folder(f"nbv-exr-{os.getpid()}-ghi")
+    old_form = folder("nbv-exr-jkl")  # no process id in the name
+    other = folder(f"other-{dead.pid}-mno")
+    assert remove_orphans(tmp_path) == [orphan]
+    assert not orphan.exists() and fresh.exists() and mine.exists()
+    assert old_form.exists() and other.exists()
+    # scratch_folder clears them on its way.
+    os.utime(fresh, (hour_ago, hour_ago))
+    os.utime(fresh / "nbv-exr-inner", (hour_ago, hour_ago))
+    os.utime(fresh / "nbv-exr-inner" / "depth.exr", (hour_ago, hour_ago))
+    scratch_folder(tmp_path, 1, ram=tmp_path)
+    assert not fresh.exists() and mine.exists()
 
 
 _EXR_CHECK = """
