@@ -110,6 +110,8 @@ def test_network_rows_are_well_formed_on_tiny_networks(tmp_path):
         assert r["ratio"] == pytest.approx(r["reference"] / r["ours"])
     for r in rows[2:6]:
         assert 0 < r["floor"] < r["ours"] and "FLOP floor" in r["note"]
+        # The floor divides by the higher rate: never above the clock formula's floor.
+        assert r["floor"] <= r["floor_of_clock"] and r["matmul_gflops"] > 0
     assert "1 core x" in rows[4]["note"]
     for r in rows[6:]:
         assert r["slowdown"] == pytest.approx(r["ours"] / r["reference"])
@@ -172,6 +174,16 @@ def test_peak_flops_formula():
     assert peak_flops("flags\t: sse sse2\n", max_khz=1_000_000, cores=1).lanes == 4
     with pytest.raises(ValueError, match="no CPU flags"):
         peak_flops("model name\t: x\n", max_khz=1, cores=1)
+
+
+def test_matmul_rate_is_the_flops_of_a_timed_product():
+    from nbv.bench.floor import matmul_flops
+
+    rate = matmul_flops(threads=1, shape=(64, 32, 16), repeat=2)
+    # 2 M K N FLOPs in at least a nanosecond: positive and finite, and no faster than that.
+    assert 0 < rate <= 2 * 64 * 32 * 16 / 1e-9
+    with pytest.raises(ValueError, match="positive sizes"):
+        matmul_flops(shape=(0, 4, 4))
 
 
 def test_configure_openmp_sets_a_passive_wait_before_torch_and_keeps_the_users():

@@ -255,8 +255,10 @@ def network_rows(
     worker runs them: one worker a core), and the episode beside a busy process against the
     quiet machine.
     Rows: dicts of name, ours, reference, ratio, target (seconds), note; the batched rows also
-    ``floor`` (seconds an episode), the load rows ``slowdown``."""
-    from nbv.bench.floor import peak_flops
+    ``floor`` (seconds an episode, at the higher of the clock's peak and the measured rate of a
+    matrix product, ``matmul_gflops``), ``floor_as_written`` and ``floor_of_clock`` (at the
+    clock's peak alone), the load rows ``slowdown``."""
+    from nbv.bench.floor import MATMUL_SHAPE, matmul_flops, peak_flops
 
     rows = []
     for name, weights, target in episodes:
@@ -269,19 +271,28 @@ def network_rows(
     # On the process's threads, and on one as each evaluation worker runs (one worker a core).
     for threads in (None, 1):
         peak = peak_flops(cores=threads)
+        # The floor's rate: the clock formula's peak, or what a matrix product reaches here on
+        # these threads when the core runs faster than the clock the machine reports.
+        measured = matmul_flops(threads)
+        rate = max(peak.flops, measured)
         on = "" if threads is None else f", {threads} thread as an evaluation worker"
         for name, weights, target in episodes:
             t = batched_seconds(views, weights, starts, repeat, threads)
-            floor, written = ((EPISODE_VIEWS - 1) * t[k] / peak.flops
-                              for k in ("forward_flops", "written_flops"))  # fmt: skip
+            floor, written, clock = ((EPISODE_VIEWS - 1) * t[k] / r for k, r in (
+                ("forward_flops", rate), ("written_flops", rate), ("forward_flops", peak.flops)
+            ))  # fmt: skip
             rows.append(dict(
                 name=f"{name} episodes, {len(starts)} in lockstep, float32{on} (per episode)",
                 ours=t["batched"], reference=t["single"], ratio=t["single"] / t["batched"],
-                target=target, floor=floor, floor_as_written=written,
+                target=target, floor=floor, floor_as_written=written, floor_of_clock=clock,
+                matmul_gflops=measured / 1e9,
                 note=f"one batched forward a step vs one at a time; FLOP floor "
                 f"{floor * 1e3:.0f} ms = {EPISODE_VIEWS - 1} x {t['forward_flops'] / 1e9:.3g} "
-                f"GFLOP / ({peak.formula()}); the network as written: "
-                f"{t['written_flops'] / 1e9:.3g} GFLOP, {written * 1e3:.0f} ms",
+                f"GFLOP / {rate / 1e9:.0f} GFLOP/s, the higher of ({peak.formula()}) and "
+                f"the {measured / 1e9:.0f} GFLOP/s of a {'x'.join(map(str, MATMUL_SHAPE))} "
+                "float32 matrix product here; "
+                f"the network as written: {t['written_flops'] / 1e9:.3g} GFLOP, "
+                f"{written * 1e3:.0f} ms",
             ))  # fmt: skip
     for name, weights, _ in episodes:
         t = load_seconds(views, weights, repeat=repeat)
