@@ -19,10 +19,10 @@ formula's peak and the rate a large matrix product reaches here on the same thre
 from __future__ import annotations
 
 import os
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from nbv.bench.timing import best_time, torch_threads
 from nbv.models.config import PCNBVConfig
 
 
@@ -165,15 +165,7 @@ def matmul_flops(threads: int | None = None, shape: tuple[int, int, int] = MATMU
     generator = torch.Generator().manual_seed(0)
     a = torch.rand(m, k, generator=generator)
     w = torch.rand(n, k, generator=generator)
-    before = torch.get_num_threads()
-    torch.set_num_threads(threads or before)
-    try:
-        best = float("inf")
-        for i in range(repeat + 1):
-            t0 = time.perf_counter()
-            torch.nn.functional.linear(a, w)
-            if i:  # the first run is the warm-up: it allocates and picks kernels
-                best = min(best, time.perf_counter() - t0)
-    finally:
-        torch.set_num_threads(before)
+    with torch_threads(threads):
+        torch.nn.functional.linear(a, w)  # warm-up: it allocates and picks kernels
+        best = best_time(lambda: torch.nn.functional.linear(a, w), repeat, float("inf"))
     return 2.0 * m * k * n / best

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from nbv.bench.timing import best_time
+from nbv.bench.timing import best_time, torch_threads
 from nbv.geometry.clouds import farthest_points
 from nbv.geometry.sph import signature
 from nbv.policies.episode import EPISODE_VIEWS
@@ -149,20 +149,6 @@ def _policy(checkpoint: Path, n_views: int, precision: str):
     return NetworkPolicy.from_checkpoint(checkpoint, n_views, precision=precision)
 
 
-@contextmanager
-def torch_threads(threads: int | None) -> Iterator[None]:
-    """torch's intra-op threads set to ``threads`` for the block (None: left as they are), and
-    restored after."""
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(threads or before)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
-
-
 def batched_seconds(
     views: Sequence[np.ndarray],
     checkpoint: Path,
@@ -278,9 +264,10 @@ def network_rows(
         on = "" if threads is None else f", {threads} thread as an evaluation worker"
         for name, weights, target in episodes:
             t = batched_seconds(views, weights, starts, repeat, threads)
-            floor, written, clock = ((EPISODE_VIEWS - 1) * t[k] / r for k, r in (
-                ("forward_flops", rate), ("written_flops", rate), ("forward_flops", peak.flops)
-            ))  # fmt: skip
+            forwards = EPISODE_VIEWS - 1
+            floor = forwards * t["forward_flops"] / rate
+            written = forwards * t["written_flops"] / rate
+            clock = forwards * t["forward_flops"] / peak.flops
             rows.append(dict(
                 name=f"{name} episodes, {len(starts)} in lockstep, float32{on} (per episode)",
                 ours=t["batched"], reference=t["single"], ratio=t["single"] / t["batched"],

@@ -1,9 +1,10 @@
-"""Wall-clock timing of a benchmark row."""
+"""Wall-clock timing of a benchmark row, and torch's threads while it runs."""
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -19,3 +20,17 @@ def best_time(fn: Callable[[], object], repeat: int = 5, budget: float = 3.0) ->
         if spent > budget:
             break
     return best
+
+
+@contextmanager
+def torch_threads(threads: int | None) -> Iterator[None]:
+    """torch's intra-op threads set to ``threads`` for the block (None: left as they are), and
+    restored after."""
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(threads or before)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
