@@ -70,3 +70,33 @@ def test_unknown_loss():
     assert LOSSES == ("squared", "normalised", "listwise", "pairwise")
     with pytest.raises(ValueError, match="loss='rank': must be one of squared"):
         per_sample_loss("rank", TARGET, TARGET, STATE)
+
+
+def test_the_weight_penalty_takes_the_encoders_matrices_or_every_matrix():
+    from nbv.models.config import PCNBVConfig
+    from nbv.models.pcnbv import PCNBV
+    from train.losses import penalised, weight_penalty
+
+    torch.manual_seed(0)
+    sizes = dict(k=4, growth=4, dense_layers=2, blocks=2, first_channels=8, attention_channels=8)
+    net = PCNBV(PCNBVConfig(n_views=5, conv_channels=(16,), fc_channels=(12,), **sizes))
+    every, encoder = penalised(net, "all"), penalised(net, "encoder")
+    # The fully connected head (here 16 -> 12 -> 5) is all that the encoder scope leaves free.
+    assert [n for n in every if n not in encoder] == ["head.0.weight", "head.2.weight"]
+    assert set(encoder) < set(every) and all(not n.startswith("head.") for n in encoder)
+    params = dict(net.named_parameters())
+    # Every matrix; biases, batch norm and the attention's gamma never.
+    assert every == [n for n, p in params.items() if p.ndim > 1]
+    assert {n.split(".")[0] for n in encoder} == {"features", "attention", "convs"}
+    head = sum(float((params[n] ** 2).sum()) for n in ("head.0.weight", "head.2.weight"))
+    assert float(weight_penalty(net, "all") - weight_penalty(net, "encoder")) == pytest.approx(
+        head, rel=1e-5
+    )
+    # The encoder's penalty sends no gradient into the head.
+    weight_penalty(net, "encoder").backward()
+    assert (
+        params["head.0.weight"].grad is None
+        and params["convs.0.linear.weight"].grad.abs().sum() > 0
+    )
+    with pytest.raises(ValueError, match="l2_scope='head': must be one of all, encoder"):
+        penalised(net, "head")

@@ -28,6 +28,8 @@ from nbv.utils.fields import check, fields_of, setting
 SCORES = ("coverage", "vig")
 #: The training losses (:mod:`train.losses`), named here so that settings load without torch.
 LOSSES = ("squared", "normalised", "listwise", "pairwise")
+#: The weights the L2 penalty takes (``l2_scope``): every weight matrix, or the point encoder's.
+L2_SCOPES = ("all", "encoder")
 INPUTS = ("points", "signature")
 DEVICES = ("auto", "cpu", "cuda")
 #: How the evaluated checkpoint (best.pt) is chosen: by the validation AUC on the valid split of
@@ -123,10 +125,17 @@ class TrainSettings:
             dataset (2 cores); raise it on a GPU.
         batch_size: samples per step.
         lr: Adam's learning rate (the PyTorch port of PC-NBV: 1e-3, step decay 0.7 every 20
-            epochs).
-        lr_decay: the learning rate's factor every ``lr_step_epochs`` epochs.
+            epochs; the authors of PCNBV-sph: 1e-4, decay 0.95 every epoch).
+        lr_decay: the learning rate's factor every ``lr_step_epochs`` epochs (``lr_decay=0.95
+            lr_step_epochs=1`` is the authors' exponential decay; 1 keeps it constant).
         lr_step_epochs: epochs between two decays of the learning rate.
-        l2: L2 penalty on the weights added to the loss.
+        l2: the factor of the L2 penalty (the sum of the squared weights of ``l2_scope``) added
+            to the loss.
+        l2_scope: the weights the penalty takes, matrices only (biases, batch norm and the
+            attention's gamma never): ``all`` (the point encoder's and the fully connected
+            head's) or ``encoder`` (the point encoder's alone: the edge convolutions, the
+            attention and the 1x1 convs before the max pool, as the authors of PCNBV-sph
+            penalise; ``head`` of :class:`nbv.models.pcnbv.PCNBV` is left free).
         train_points: points per training cloud (a seeded random subset of the stored 1024).
         eval_points: points per evaluation cloud (farthest point sampled from the accumulated
             cloud; the number the network was trained on).
@@ -181,9 +190,10 @@ class TrainSettings:
     epochs: int = _at_least(4, 1)
     batch_size: int = _at_least(32, 1)
     lr: float = setting(1e-3, check=lambda v: v > 0, allowed="a positive number")
-    lr_decay: float = 0.7
-    lr_step_epochs: int = 20
-    l2: float = 1e-4
+    lr_decay: float = setting(0.7, check=lambda v: 0 < v <= 1, allowed="a number in (0, 1]")
+    lr_step_epochs: int = _at_least(20, 1)
+    l2: float = setting(1e-4, check=lambda v: v >= 0, allowed="a number >= 0")
+    l2_scope: str = _one_of(L2_SCOPES, "all")
     train_points: int = _at_least(512, 1)
     eval_points: int = _at_least(512, 1)
     precision: str = _one_of(PRECISIONS, "auto")

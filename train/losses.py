@@ -19,10 +19,11 @@ from __future__ import annotations
 
 import torch
 import torch.nn.functional as F
+from torch import nn
 
-from train.config import LOSSES
+from train.config import L2_SCOPES, LOSSES
 
-__all__ = ["LOSSES", "batch_loss", "per_sample_loss"]
+__all__ = ["L2_SCOPES", "LOSSES", "batch_loss", "penalised", "per_sample_loss", "weight_penalty"]
 
 
 def _normalised(target: torch.Tensor) -> torch.Tensor:
@@ -92,3 +93,26 @@ def batch_loss(
     if counted is None:
         return losses.mean()
     return (losses * counted).sum() / counted.sum().clamp_min(1)
+
+
+def penalised(model: nn.Module, scope: str) -> list[str]:
+    """Names of the parameters the L2 penalty takes: the weight matrices (ndim > 1) of the
+    whole network (``scope="all"``) or of its point encoder, everything but the fully
+    connected ``head`` of :class:`nbv.models.pcnbv.PCNBV` (``scope="encoder"``).
+
+    Raises:
+        ValueError: an unknown scope.
+    """
+    if scope not in L2_SCOPES:
+        raise ValueError(f"l2_scope={scope!r}: must be one of {', '.join(L2_SCOPES)}")
+    return [
+        name
+        for name, p in model.named_parameters()
+        if p.ndim > 1 and (scope == "all" or not name.startswith("head."))
+    ]
+
+
+def weight_penalty(model: nn.Module, scope: str) -> torch.Tensor:
+    """The sum of the squares of the :func:`penalised` parameters (a scalar tensor)."""
+    names = set(penalised(model, scope))
+    return sum((p**2).sum() for n, p in model.named_parameters() if n in names)
