@@ -3,21 +3,25 @@
 Per epoch: a seeded shuffle of the training samples, batches of ``batch_size``, each cloud a seeded
 random subset of ``train_points`` of its stored points (the signature is used whole), each
 sample mapped by a random symmetry of its viewspace (``augment``, :mod:`train.augment`), loss =
-``loss`` (:mod:`train.losses`; the paper's sum of squared errors over the V outputs by default,
-mean over the batch) + ``l2`` times the squared weights. Then Spearman correlation and best-view
-hits on a fixed 300 of the training samples (unaugmented), and the validation loss, Spearman
-correlation and best-view hits on the samples of the *valid*
-split of the fold's training categories, and every ``eval_every`` epochs (and at the last) the
-reconstruction metric there: coverage by view and AUC of the network's episodes from
-``start_views`` on those models. The held-out category takes no part in training or in choosing
-the checkpoint: it is scored once, at the end, with the chosen one (:mod:`train.heldout`).
+``loss`` (:mod:`train.losses`, mean over the batch) + ``l2`` times the squared weights of
+``l2_scope``. Then Spearman correlation (overall, at early steps 0-1 and at late steps 2 and
+later: :func:`train.metrics.spearman_by_stage`) and best-view hits on a fixed 300 of the
+training samples (unaugmented), and the validation loss, Spearman correlations and best-view hits
+on the samples of the *valid* split of the fold's training categories, beside the same Spearman
+correlations of two baselines there, computed once at the start (:mod:`train.baselines`: a ridge
+regression fitted on the training samples, and the spread rule's angle), and every
+``eval_every`` epochs (and at the last) the reconstruction metric there: coverage by view and AUC
+of the network's episodes from ``start_views`` on those models. The held-out category takes no
+part in training or in choosing the checkpoint: it is scored once, at the end, with the chosen
+one (:mod:`train.heldout`).
 
 ``out_dir`` gets ``last.pt`` (every epoch, with the optimizer state and the run's identity, for
 resuming: :mod:`train.resume`), ``best.pt`` (``select=valid``: the best validation AUC;
-``select=last``: the last epoch), ``metrics.csv``, ``heldout.json`` (the held-out category's
-episodes of best.pt, random, spread and the oracle) and TensorBoard logs in ``tb/``. Every random
-draw of an epoch comes from ``(seed, epoch)``, so a resumed run continues exactly as an
-uninterrupted one would.
+``select=last``: the last epoch), ``metrics.csv`` (with the baselines' Spearman as constant
+columns: ``ridge_val_spearman``, ``spread_val_spearman_late``, ...), ``baselines.json``,
+``heldout.json`` (the held-out category's episodes of best.pt, random, spread and the oracle)
+and TensorBoard logs in ``tb/``. Every random draw of an epoch comes from ``(seed, epoch)``, so a
+resumed run continues exactly as an uninterrupted one would.
 """
 
 from __future__ import annotations
@@ -43,15 +47,11 @@ from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
 from nbv.utils.atomic import write_text
 from train.augment import Augmentation
+from train.baselines import write_baselines
 from train.config import TrainSettings, stored_settings
 from train.heldout import HELDOUT_FILE, score_heldout
-from train.losses import batch_loss
-from train.metrics import (
-    SPEARMAN_FILE,
-    best_view_hits,
-    spearman,
-    spearman_by_model,
-)
+from train.losses import batch_loss, weight_penalty
+from train.metrics import SPEARMAN_FILE, ranking_metrics, spearman_by_model
 from train.records import append_csv_rows, dataset_identity
 from train.resume import check_resumable, clear_run, file_digest, run_identity
 
@@ -145,8 +145,9 @@ def loss_fn(
     view_state: torch.Tensor,
     settings: TrainSettings,
 ) -> torch.Tensor:
-    """``settings.loss`` of the batch (:mod:`train.losses`) plus ``l2`` * |weights|^2."""
-    penalty = sum((p**2).sum() for n, p in model.named_parameters() if p.ndim > 1)
+    """``settings.loss`` of the batch (:mod:`train.losses`) plus ``l2`` times
+    :func:`weight_penalty` of ``l2_scope``."""
+    penalty = weight_penalty(model, settings.l2_scope) if settings.l2 else 0.0
     return batch_loss(settings.loss, pred, target, view_state) + settings.l2 * penalty
 
 
@@ -172,6 +173,54 @@ def predict(
         torch.from_numpy(samples.view_state.astype(np.float32)),
     )
     return pred, float(loss)
+
+
+def train_epoch(
+    model: PCNBV,
+    optimizer: torch.optim.Optimizer,
+    train: SampleSet,
+    settings: TrainSettings,
+    epoch: int,
+    device: torch.device,
+    augmentation: Augmentation | None = None,
+) -> dict[str, float]:
+    """One epoch of training steps on ``train`` (a seeded shuffle from ``(seed, epoch)``,
+    batches of ``batch_size``, :func:`loss_fn`); the learning rate is the caller's.
+
+    Returns:
+        ``{"train_loss"`` (mean over the batches), ``"samples_per_s"``, ``"load_fraction"``
+        (of the time spent building batches)``}``.
+    """
+    rng = np.random.default_rng([settings.seed, epoch])
+    torch.manual_seed(settings.seed * 100003 + epoch)
+    model.train()
+    order = rng.permutation(len(train))
+    size = settings.batch_size
+    batches = [order[i : i + size] for i in range(0, len(order), size)]
+    load_time = step_time = 0.0
+    losses = []
+    bar = tqdm(batches, desc=f"epoch {epoch + 1}/{settings.epochs}", disable=not settings.progress)
+    prepared = _batches(train, batches, settings, rng, augmentation, epoch, device)
+    for index, tensors in zip(bar, prepared, strict=True):
+        t0 = time.perf_counter()
+        x, s, t = (a.to(device, non_blocking=True) for a in tensors)
+        t1 = time.perf_counter()
+        optimizer.zero_grad()
+        with autocast(settings.precision, device):
+            pred = model(x, s)
+        loss = loss_fn(model, pred, t, s, settings)
+        loss.backward()
+        optimizer.step()
+        t2 = time.perf_counter()
+        load_time += t1 - t0
+        step_time += t2 - t1
+        losses.append(loss.item())
+        bar.set_postfix(loss=f"{np.mean(losses[-20:]):.4f}", sps=f"{len(index) / (t2 - t0):.0f}")
+    return {
+        "train_loss": float(np.mean(losses)),
+        "samples_per_s": len(train) / max(load_time + step_time, 1e-9),
+        "load_fraction": load_time / max(load_time + step_time, 1e-9),
+    }
 
 
 def episodes_metric(dataset, keys: list[str], policy, start_views) -> np.ndarray:
@@ -359,60 +408,25 @@ def _train(settings: TrainSettings) -> dict:
         # The models whose episodes chose this checkpoint: nbv.eval leaves them out.
         "selection_keys": selection_keys if settings.select == "valid" else [],
     }
+    baselines = {}
+    if len(val):
+        viewspace = str(train.attrs.get("viewspace", "original"))
+        baselines = write_baselines(out_dir, train, val, dataset.viewspaces[viewspace], viewspace)
     row: dict = {}
     for epoch in range(first_epoch, settings.epochs):
-        rng = np.random.default_rng([settings.seed, epoch])
-        torch.manual_seed(settings.seed * 100003 + epoch)
-        model.train()
-        order = rng.permutation(len(train))
-        batches = [
-            order[i : i + settings.batch_size] for i in range(0, len(order), settings.batch_size)
-        ]
-        load_time = step_time = 0.0
-        losses = []
-        bar = tqdm(
-            batches, desc=f"epoch {epoch + 1}/{settings.epochs}", disable=not settings.progress
-        )
-        prepared = _batches(train, batches, settings, rng, augmentation, epoch, device)
-        for index, tensors in zip(bar, prepared, strict=True):
-            t0 = time.perf_counter()
-            x, s, t = (a.to(device, non_blocking=True) for a in tensors)
-            t1 = time.perf_counter()
-            optimizer.zero_grad()
-            with autocast(settings.precision, device):
-                pred = model(x, s)
-            loss = loss_fn(model, pred, t, s, settings)
-            loss.backward()
-            optimizer.step()
-            t2 = time.perf_counter()
-            load_time += t1 - t0
-            step_time += t2 - t1
-            losses.append(loss.item())
-            bar.set_postfix(
-                loss=f"{np.mean(losses[-20:]):.4f}", sps=f"{len(index) / (t2 - t0):.0f}"
-            )
+        stats = train_epoch(model, optimizer, train, settings, epoch, device, augmentation)
         scheduler.step()
-        row = {
-            "epoch": epoch + 1,
-            "lr": optimizer.param_groups[0]["lr"],
-            "train_loss": float(np.mean(losses)),
-            "samples_per_s": len(train) / max(load_time + step_time, 1e-9),
-            "load_fraction": load_time / max(load_time + step_time, 1e-9),
-        }
+        row = {"epoch": epoch + 1, "lr": optimizer.param_groups[0]["lr"], **stats}
         if len(val):
             pred, val_loss = predict(model, val, settings, device)
-            row.update(
-                val_loss=val_loss,
-                val_spearman=spearman(pred, val.target, val.view_state),
-                val_best_view_hits=best_view_hits(pred, val.target, val.view_state),
-            )
+            row.update(val_loss=val_loss, **ranking_metrics(pred, val, "val"))
             by_model = spearman_by_model(pred, val.target, val.view_state, val.key)
             append_csv_rows(out_dir / SPEARMAN_FILE, [{"epoch": epoch + 1, **r} for r in by_model])
         pred, _ = predict(model, probe, settings, device)
-        row.update(
-            train_spearman=spearman(pred, probe.target, probe.view_state),
-            train_best_view_hits=best_view_hits(pred, probe.target, probe.view_state),
-        )
+        row.update(ranking_metrics(pred, probe, "train"))
+        # Constant columns: a curve of the network's Spearman is drawn against them.
+        for name, stages in baselines.items():
+            row.update({f"{name}_val_{k}": v for k, v in stages.items()})
         last_epoch = epoch + 1 == settings.epochs
         if selection_keys and ((epoch + 1) % settings.eval_every == 0 or last_epoch):
             policy = _network_policy(model, settings, lmax)

@@ -21,7 +21,7 @@ from train.config import TrainConfigError, TrainSettings, stored_settings
 RESUMABLE = ("epochs", "progress", "threads", "out_dir", "resume", "random_repeats")
 #: What a training run writes into its folder; resume=false deletes exactly these.
 RUN_FILES = ("last.pt", "best.pt", "metrics.csv", "settings.json", "heldout.json", "tb",
-             "val_spearman_by_model.csv")  # fmt: skip
+             "val_spearman_by_model.csv", "baselines.json")  # fmt: skip
 
 
 def file_digest(paths: list[Path]) -> str:
