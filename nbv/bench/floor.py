@@ -14,6 +14,9 @@ EPYC of 2026-12-04 (``cpu MHz`` 2445, no cpufreq) one thread's float32 matrix pr
 91.5 GFLOP/s, above that clock's 78 GFLOP/s "peak". So the floor divides by the higher of the
 formula's peak and the rate a large matrix product reaches here on the same threads
 (:func:`matmul_flops`): a floor no forward pass can beat by running faster than the formula.
+Where the timed work runs partly in bfloat16 the rate is also the bfloat16 product's, when
+higher (:func:`floor_rate`). A training step (forward, backward, optimizer) counts three
+forwards (:func:`training_flops`).
 """
 
 from __future__ import annotations
@@ -64,6 +67,21 @@ def pcnbv_flops(config: PCNBVConfig, n_points: int) -> int:
     macs += n * n * a + n * n * c  # q k^T, attention times values
     macs += _tail_macs(config, n, n * c * config.conv_channels[0])
     return 2 * macs
+
+
+def training_flops(config: PCNBVConfig, n_points: int) -> int:
+    """FLOPs of one training step of one sample: three forward passes as written
+    (:func:`pcnbv_flops`), the usual estimate of a forward plus a backward that computes the
+    gradients of both the weights and the activations (each twice the forward's products).
+    Torch's ``FlopCounterMode`` counts 0.2-1.3 % fewer (the first conv's input and the neighbour
+    search's distance products need no gradient); the optimizer's element-wise update is left
+    out.
+
+    Args:
+        config: the network's sizes.
+        n_points: points the sample holds.
+    """
+    return 3 * pcnbv_flops(config, n_points)
 
 
 def inference_flops(config: PCNBVConfig, n_points: int) -> int:
@@ -148,24 +166,78 @@ def peak_flops(cpuinfo: str | None = None, max_khz: int | None = None,
 MATMUL_SHAPE = (2048, 1024, 1024)
 
 
+#: How :func:`matmul_flops` and the notes name a precision's matrix product.
+PRODUCT_NAMES = {"fp32": "float32", "bf16": "bfloat16"}
+
+
 def matmul_flops(threads: int | None = None, shape: tuple[int, int, int] = MATMUL_SHAPE,
-                 repeat: int = 10) -> float:  # fmt: skip
-    """The best float32 FLOP/s of a ``torch`` matrix product of ``shape`` (M, K, N) over
-    ``repeat`` runs, on ``threads`` torch threads (None: the process's), after one warm-up run:
-    the rate this machine's BLAS reaches, to set beside :func:`peak_flops`.
+                 repeat: int = 10, precision: str = "fp32") -> float:  # fmt: skip
+    """The best FLOP/s of a ``torch`` matrix product of ``shape`` (M, K, N) over ``repeat``
+    runs, on ``threads`` torch threads (None: the process's), after one warm-up run: the rate
+    this machine's BLAS reaches, to set beside :func:`peak_flops`. ``precision``: the operands'
+    type, ``"fp32"`` (float32) or ``"bf16"`` (bfloat16, cast before the timing).
 
     Raises:
-        ValueError: a shape with a non-positive size, or ``repeat`` < 1.
+        ValueError: a shape with a non-positive size, ``repeat`` < 1, or another precision.
     """
     import torch
 
     m, k, n = shape
     if min(m, k, n) < 1 or repeat < 1:
         raise ValueError(f"shape {shape} needs positive sizes and repeat={repeat} >= 1")
+    if precision not in PRODUCT_NAMES:
+        raise ValueError(f"precision={precision!r}: must be one of {', '.join(PRODUCT_NAMES)}")
+    dtype = torch.bfloat16 if precision == "bf16" else torch.float32
     generator = torch.Generator().manual_seed(0)
-    a = torch.rand(m, k, generator=generator)
-    w = torch.rand(n, k, generator=generator)
+    a = torch.rand(m, k, generator=generator).to(dtype)
+    w = torch.rand(n, k, generator=generator).to(dtype)
     with torch_threads(threads):
         torch.nn.functional.linear(a, w)  # warm-up: it allocates and picks kernels
         best = best_time(lambda: torch.nn.functional.linear(a, w), repeat, float("inf"))
     return 2.0 * m * k * n / best
+
+
+@dataclass(frozen=True)
+class FloorRate:
+    """The FLOP/s a row's floor divides by (:func:`floor_rate`).
+
+    Attributes:
+        peak: the clock formula's peak on the row's threads.
+        matmul: the measured FLOP/s of a matrix product of ``shape`` by precision (``"fp32"``,
+            and ``"bf16"`` where the timed work runs partly in bfloat16).
+        shape: the product's (M, K, N).
+    """
+
+    peak: Peak
+    matmul: dict[str, float]
+    shape: tuple[int, int, int] = MATMUL_SHAPE
+
+    @property
+    def flops(self) -> float:
+        """The highest of the peak and the measured rates, FLOP/s."""
+        return max(self.peak.flops, *self.matmul.values())
+
+    def describe(self) -> str:
+        """``R GFLOP/s, the higher of (formula) and the M GFLOP/s of a ... matrix product here``,
+        as the rows' notes print it."""
+        shape = "x".join(map(str, self.shape))
+        products = " and the ".join(
+            f"{rate / 1e9:.0f} GFLOP/s of a {shape} {PRODUCT_NAMES[p]} matrix product"
+            for p, rate in self.matmul.items()
+        )
+        return (
+            f"{self.flops / 1e9:.0f} GFLOP/s, the higher of ({self.peak.formula()}) and the "
+            f"{products} here"
+        )
+
+
+def floor_rate(threads: int | None = None, precision: str = "fp32",
+               shape: tuple[int, int, int] = MATMUL_SHAPE) -> FloorRate:  # fmt: skip
+    """The floor's rate on ``threads`` torch threads (None: the process's; the clock formula
+    counts as many cores): the clock formula's peak, or what a float32 matrix product of
+    ``shape`` reaches here when the core runs faster than the clock the machine reports, and
+    for ``precision="bf16"`` (work partly under bfloat16 autocast) a bfloat16 product's too."""
+    matmul = {"fp32": matmul_flops(threads, shape)}
+    if precision == "bf16":
+        matmul["bf16"] = matmul_flops(threads, shape, precision="bf16")
+    return FloorRate(peak_flops(cores=threads), matmul, shape)

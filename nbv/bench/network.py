@@ -143,6 +143,12 @@ def lockstep_episodes(
     return orders
 
 
+def input_points(policy) -> int:
+    """Points one sample of a :class:`~nbv.policies.network.NetworkPolicy`'s network holds: its
+    ``n_points``, or the ``4 (lmax+1)^2`` of a spherical signature."""
+    return 4 * (policy.lmax + 1) ** 2 if policy.input == "signature" else policy.n_points
+
+
 def _policy(checkpoint: Path, n_views: int, precision: str):
     from nbv.policies.network import NetworkPolicy
 
@@ -182,7 +188,7 @@ def batched_seconds(
             raise AssertionError("batched and one-at-a-time episodes chose different views")
         out = {name: best_time(fn, repeat, np.inf) / n for name, fn in
                (("batched", batched), ("single", single))}  # fmt: skip
-    points = 4 * (policy.lmax + 1) ** 2 if policy.input == "signature" else policy.n_points
+    points = input_points(policy)
     out["forward_flops"] = float(inference_flops(policy.model.config, points))
     out["written_flops"] = float(pcnbv_flops(policy.model.config, points))
     return out
@@ -244,7 +250,7 @@ def network_rows(
     ``floor`` (seconds an episode, at the higher of the clock's peak and the measured rate of a
     matrix product, ``matmul_gflops``), ``floor_as_written`` and ``floor_of_clock`` (at the
     clock's peak alone), the load rows ``slowdown``."""
-    from nbv.bench.floor import MATMUL_SHAPE, matmul_flops, peak_flops
+    from nbv.bench.floor import floor_rate
 
     rows = []
     for name, weights, target in episodes:
@@ -256,28 +262,24 @@ def network_rows(
         ))  # fmt: skip
     # On the process's threads, and on one as each evaluation worker runs (one worker a core).
     for threads in (None, 1):
-        peak = peak_flops(cores=threads)
         # The floor's rate: the clock formula's peak, or what a matrix product reaches here on
         # these threads when the core runs faster than the clock the machine reports.
-        measured = matmul_flops(threads)
-        rate = max(peak.flops, measured)
+        rate = floor_rate(threads)
         on = "" if threads is None else f", {threads} thread as an evaluation worker"
         for name, weights, target in episodes:
             t = batched_seconds(views, weights, starts, repeat, threads)
             forwards = EPISODE_VIEWS - 1
-            floor = forwards * t["forward_flops"] / rate
-            written = forwards * t["written_flops"] / rate
-            clock = forwards * t["forward_flops"] / peak.flops
+            floor = forwards * t["forward_flops"] / rate.flops
+            written = forwards * t["written_flops"] / rate.flops
+            clock = forwards * t["forward_flops"] / rate.peak.flops
             rows.append(dict(
                 name=f"{name} episodes, {len(starts)} in lockstep, float32{on} (per episode)",
                 ours=t["batched"], reference=t["single"], ratio=t["single"] / t["batched"],
                 target=target, floor=floor, floor_as_written=written, floor_of_clock=clock,
-                matmul_gflops=measured / 1e9,
+                matmul_gflops=rate.matmul["fp32"] / 1e9,
                 note=f"one batched forward a step vs one at a time; FLOP floor "
                 f"{floor * 1e3:.0f} ms = {EPISODE_VIEWS - 1} x {t['forward_flops'] / 1e9:.3g} "
-                f"GFLOP / {rate / 1e9:.0f} GFLOP/s, the higher of ({peak.formula()}) and "
-                f"the {measured / 1e9:.0f} GFLOP/s of a {'x'.join(map(str, MATMUL_SHAPE))} "
-                "float32 matrix product here; "
+                f"GFLOP / {rate.describe()}; "
                 f"the network as written: {t['written_flops'] / 1e9:.3g} GFLOP, "
                 f"{written * 1e3:.0f} ms",
             ))  # fmt: skip
