@@ -228,6 +228,70 @@ def test_a_training_step_counts_three_forwards_at_most_torchs_count_above():
     assert 2 * training_flops(config, 64) == 1_688_768_256
 
 
+def test_training_step_is_one_adam_step_on_the_squared_error():
+    import copy
+
+    import torch
+    from test_policies import TINY_NET
+
+    from nbv.bench.training import random_batch, training_step
+    from nbv.models.config import PCNBVConfig
+    from nbv.models.pcnbv import PCNBV
+
+    torch.manual_seed(0)
+    net = PCNBV(PCNBVConfig(n_views=12, **TINY_NET)).train()
+    twin = copy.deepcopy(net)
+    points, state, target = batch = random_batch(20, 12, batch=5, seed=3)
+    assert points.shape == (5, 20, 3) and state.shape == target.shape == (5, 12)
+    assert torch.equal(target[state == 1], torch.zeros(int(state.sum())))
+    optimizer = torch.optim.Adam(net.parameters(), lr=1e-2)
+    loss = training_step(net, optimizer, batch, "fp32")
+    expected = ((twin(points, state) - target) ** 2).sum(dim=1).mean()
+    expected.backward()
+    assert loss == pytest.approx(expected.item(), rel=1e-6)
+    for (name, p), q in zip(net.named_parameters(), twin.parameters(), strict=True):
+        torch.testing.assert_close(p.grad, q.grad, msg=name)
+        # Adam's first step moves every weight with a gradient by about lr against its sign.
+        moved = (q - p)[q.grad != 0]
+        assert torch.allclose(moved, 1e-2 * q.grad[q.grad != 0].sign(), rtol=1e-2), name
+
+
+@pytest.mark.parametrize(
+    ("precision", "kind"), [("fp32", "float32"), ("bf16", "bfloat16 autocast")]
+)
+def test_training_rows_are_well_formed_on_tiny_networks(tmp_path, precision, kind):
+    """A training row per network with positive rates and its floor (not its speed)."""
+    from test_policies import TINY_NET, save_tiny_checkpoint
+
+    from nbv.bench.floor import pcnbv_flops
+    from nbv.bench.training import training_rows
+    from nbv.models.config import PCNBVConfig
+
+    nets = [("tiny", save_tiny_checkpoint(tmp_path / "p.pt")),
+            ("tiny-sph", save_tiny_checkpoint(tmp_path / "s.pt", "signature"))]  # fmt: skip
+    rows = training_rows(nets, n_views=33, batch=4, precision=precision, threads=1, repeat=1)
+    assert [r["name"] for r in rows] == [
+        f"tiny training step (forward + backward + Adam), batch 4 x 64 points, {kind}",
+        # lmax 2: 4 (2 + 1)^2 = 36 signature points
+        f"tiny-sph training step (forward + backward + Adam), batch 4 x 36 points, {kind}",
+    ]
+    config = PCNBVConfig(n_views=33, **TINY_NET)
+    for r, points in zip(rows, (64, 36), strict=True):
+        assert r["points"] == points and r["batch"] == 4 and r["threads"] == 1
+        assert r["forward_flops"] == pcnbv_flops(config, points)
+        assert r["train_flops"] == 3 * r["forward_flops"]
+        assert r["ours"] > 0 and r["samples_per_s"] == 4 / r["ours"]
+        assert r["reference"] == r["floor"] and r["ratio"] == r["floor"] / r["ours"]
+        assert r["floor_samples_per_s"] == 4 / r["floor"]
+        # The floor divides by the higher rate: never above the clock formula's floor.
+        assert 0 < r["floor"] <= r["floor_of_clock"] and r["matmul_gflops"] > 0
+        assert r["precision"] == precision
+        assert ("matmul_bf16_gflops" in r) == (precision == "bf16")
+        assert r["note"].startswith(f"{4 / r['ours']:.1f} samples/s on 1 thread vs the FLOP")
+        assert "1 core x" in r["note"]
+    assert "| tiny training step" in format_table(rows)
+
+
 def test_configure_openmp_sets_a_passive_wait_before_torch_and_keeps_the_users():
     import subprocess
     import sys

@@ -6,9 +6,9 @@ Every row times the project's implementation and an independent, plain implement
 thing on the same data in the same run, and gives the ratio. The data: a synthetic chair rendered
 by ray casting from the 33 original views at 640 x 480 (full-resolution view clouds), its
 16384-point ground truth, and a 100k-point cloud from its views. A PCNBV inference episode on those
-views follows (``network=false`` skips it; trained weights from ``checkpoint=...``, by default
-fold 0's ``best.pt`` when it exists), and the last rows compare the two rendering backends
-(``render=false`` skips them).
+views follows, and a training step of each network beside its FLOP floor (``network=false`` skips
+them; trained weights from ``checkpoint=...``, by default fold 0's ``best.pt`` when it exists),
+and the last rows compare the two rendering backends (``render=false`` skips them).
 
 Targets (issues 3, 4 and 5) are printed beside the measured times; the paper's are in FACTS.md."""
 
@@ -142,8 +142,9 @@ def run(
 ) -> list[dict]:
     """Measure every row; returns dicts with name, ours, reference, ratio, target (seconds).
 
-    ``network`` adds the network rows of :func:`nbv.bench.network.network_rows` (PCNBV's
-    weights from ``checkpoint``, else the shipped ones; PCNBV-sph's shipped);
+    ``network`` adds the network rows of :func:`nbv.bench.network.network_rows` and the
+    training rows of :func:`nbv.bench.training.training_rows` (PCNBV's weights from
+    ``checkpoint``, else the shipped ones; PCNBV-sph's shipped);
     ``render`` the rendering rows."""
     scene = bench_scene(seed)
     views, gt, cloud = scene["views"], scene["gt"], scene["cloud100k"]
@@ -279,10 +280,13 @@ def run(
     rows += warm_rows()
     if network:
         from nbv.bench.network import network_rows
+        from nbv.bench.training import training_rows
 
         pcnbv = checkpoint if checkpoint is not None else PCNBV.weights(None)
-        rows += network_rows(stored, [("PCNBV", pcnbv, 0.13),
-                                      ("PCNBV-sph", PCNBV_SPH.weights(None), 0.04)])  # fmt: skip
+        networks = [("PCNBV", pcnbv), ("PCNBV-sph", PCNBV_SPH.weights(None))]
+        targets = {"PCNBV": 0.13, "PCNBV-sph": 0.04}
+        rows += network_rows(stored, [(name, w, targets[name]) for name, w in networks])
+        rows += training_rows(networks, len(stored))
     if render:
         import tempfile
 
