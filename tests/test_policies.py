@@ -27,6 +27,7 @@ from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS, SHIPPED_SCORER
+from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 
 #: A PCNBV small enough to run in milliseconds (the sizes of tests/test_train.py).
@@ -477,6 +478,40 @@ def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):
     assert episode.views[1 : 1 + len(covering)] == covering
     assert hybrid.gain.integrated == episode.views[:-1][: len(hybrid.gain.integrated)]
     assert hybrid.counts["planned"] == len(covering) + hybrid.gain.counts["planned"] == 9
+
+
+@pytest.mark.parametrize("sph", [False, True])
+def test_two_stage_takes_the_networks_picks_then_the_plan_of_the_whole_cloud(model, networks, sph):
+    view = model.views["original"]
+    hull = dict(intrinsics=SMALL_CAMERA, settings=PlannerSettings(n_samp=2048, lmax=2), sph=sph)
+    k = 3
+    policy = NetworkThenHullPolicy(
+        networks["signature"].fresh(), HullSCOPolicy(np.random.default_rng(7), **hull), k
+    )
+    episode = run_episode(model, "original", 27, policy)
+    # (a) The first k picks are the network's, as it picks alone from the same start.
+    alone = run_episode(model, "original", 27, networks["signature"].fresh())
+    assert episode.views[: k + 1] == alone.views[: k + 1]
+    # (b) The rest is one plan on the hull of all k + 1 captured views' points, visited excluded.
+    seen = episode.views[: k + 1]
+    planner = HullSCOPolicy(np.random.default_rng(7), **hull)
+    cloud = np.concatenate([view.view_points(v) for v in seen])
+    assert episode.views[k + 1 :] == planner.plan_from(cloud, view.poses, seen, 10 - (k + 1))
+    assert len(episode.times) == k + 1  # k network decisions, then one plan
+    assert len(policy.timings["network"]) == k and len(policy.timings["set_cover"]) == 1
+    assert len(policy.timings["signature"]) == k + sph  # the network's, then the plan's
+    assert policy.counts == planner.counts and policy.last_gains == planner.last_gains
+    # No network view: the one-shot planner on the start view's cloud, pick for pick.
+    none = NetworkThenHullPolicy(
+        networks["signature"].fresh(), HullSCOPolicy(np.random.default_rng(7), **hull), 0
+    )
+    one_shot = HullSCOPolicy(np.random.default_rng(7), **hull)
+    assert (
+        run_episode(model, "original", 27, none).views
+        == run_episode(model, "original", 27, one_shot).views
+    )
+    with pytest.raises(ValueError, match="network_views=-1"):
+        NetworkThenHullPolicy(networks["signature"].fresh(), one_shot, -1)
 
 
 def test_a_bfloat16_checkpoint_runs_in_bfloat16_only_where_the_cpu_has_it(tmp_path):

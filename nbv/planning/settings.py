@@ -28,6 +28,11 @@ class PlannerSettings:
             episode).
         probe_points: points of each probe view added to the start view's cloud (the paper's
             "three random views with 100 points").
+        network_views: views the VIG network of the two-stage planners
+            (:mod:`nbv.policies.two_stage`) picks one at a time after the start view, before the
+            set cover plans the rest on the hull of everything captured. 2 because the paper's
+            Fig. 13 shows VIG nearly saturating after 2-3 views, and each network view is one
+            view fewer for the set cover's plan.
     """
 
     n_samp: int = setting(16384, check=lambda v: v >= 1, allowed="an integer >= 1")
@@ -38,6 +43,7 @@ class PlannerSettings:
     lmax: int = setting(3, check=lambda v: v >= 0, allowed="an integer >= 0")
     probes: int = setting(3, check=lambda v: v >= 0, allowed="an integer >= 0")
     probe_points: int = setting(100, check=lambda v: v >= 1, allowed="an integer >= 1")
+    network_views: int = setting(2, check=lambda v: v >= 0, allowed="an integer >= 0")
 
     def __post_init__(self) -> None:
         check_ranges(self)

@@ -169,15 +169,20 @@ class HullSCOPolicy:
             parts.append(pts[np.sort(keep)])
         return np.concatenate(parts)
 
+    def plan_rest(self, state: EpisodeState, cloud: np.ndarray) -> list[int]:
+        """Plan every view the episode has left (``n_views``, at most the viewspace's size, less
+        the captured ones) on the hull of ``cloud`` ((N, 3) float, world units), the captured
+        views excluded (:meth:`plan_from`)."""
+        poses = state.model.views[state.viewspace].poses
+        remaining = min(self.n_views, len(poses)) - len(state.order)
+        return self.plan_from(cloud, poses, list(state.order), remaining)
+
     def __call__(self, state: EpisodeState) -> list[int]:
-        remaining = self.n_views - len(state.order)
         if self.probes > 0 and len(state.order) == 1:
             free = np.flatnonzero(~state.view_state)
-            k = min(self.probes, remaining, len(free))
+            k = min(self.probes, self.n_views - len(state.order), len(free))
             return [int(v) for v in self.rng.choice(free, k, replace=False)]
-        poses = state.model.views[state.viewspace].poses
-        remaining = min(remaining, len(poses) - len(state.order))
-        return self.plan_from(self._probe_cloud(state), poses, list(state.order), remaining)
+        return self.plan_rest(state, self._probe_cloud(state))
 
 
 @dataclass

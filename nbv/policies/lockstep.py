@@ -4,8 +4,9 @@
 lockstep: at every step each episode that needs a decision asks its policy. A policy that is
 :class:`Batchable` does not decide alone: it states what its network should be shown
 (:meth:`Batchable.request`), and the requests of every episode that runs the same network are
-answered by one batched forward pass (``NetworkPolicy.decide_many``). Every other policy is called
-as :func:`nbv.policies.episode.run_episode` calls it.
+answered by one batched forward pass (``NetworkPolicy.decide_many``). Every other policy, and a
+batchable one whose decision runs no network (its request is None: the two-stage planner's plan),
+is called as :func:`nbv.policies.episode.run_episode` calls it.
 
 Each episode is exactly what :func:`~nbv.policies.episode.run_episode` gives for it alone: its
 policy, state and generator are its own, so the order in which episodes are served changes no
@@ -86,10 +87,12 @@ class StateRequest(NamedTuple):
 
 @runtime_checkable
 class Batchable(Protocol):
-    """A policy whose decision is one forward pass of a network that others may share."""
+    """A policy whose decision is one forward pass of a network that others may share (or, for
+    a policy that runs a network for some decisions only, may be)."""
 
-    def request(self, state: EpisodeState) -> Request:
-        """What its network should be shown in ``state`` (drawing what the decision draws)."""
+    def request(self, state: EpisodeState) -> Request | None:
+        """What its network should be shown in ``state`` (drawing what the decision draws);
+        None: this decision runs no network, and the policy is called as alone."""
         ...
 
 
@@ -137,8 +140,8 @@ def run_lockstep(
                 continue
             policy = spec.policy
             t0 = time.perf_counter()
-            if isinstance(policy, Batchable):
-                request = policy.request(run.state)
+            request = policy.request(run.state) if isinstance(policy, Batchable) else None
+            if request is not None:
                 # Batched by network (the fresh() copies of one checkpoint share its model) and
                 # by the viewspace's size (a forward pass scores one V).
                 key = (type(request), id(request.policy.model), len(run.state.view_state))
