@@ -44,8 +44,10 @@ from nbv.planning.gain_scorer import GainScorer, ScorerError, save_scorer
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.planning.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode
+from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     CHECKS,
+    DEFAULT_METHODS,
     NETWORK_INPUTS,
     PLANNERS,
     SHIPPED_SCORER,
@@ -66,6 +68,8 @@ def tiny(tmp_path_factory) -> dict[str, Path]:
         "data": make_tiny_dataset(tmp / "data"),
         "pcnbv": save_tiny_checkpoint(tmp / "pcnbv.pt", "points"),
         "pcnbv_sph": save_tiny_checkpoint(tmp / "pcnbv_sph.pt", "signature"),
+        "pcnbv_vig": save_tiny_checkpoint(tmp / "pcnbv_vig.pt", "points", seed=1),
+        "pcnbv_sph_vig": save_tiny_checkpoint(tmp / "pcnbv_sph_vig.pt", "signature", seed=1),
         "vcnbv": save_tiny_checkpoint(tmp / "vcnbv.pt", "directions"),
         "vcnbv_map": save_tiny_checkpoint(tmp / "vcnbv_map.pt", "directions_map"),
     }
@@ -92,7 +96,7 @@ def tiny_settings(
 
 @pytest.fixture(scope="module")
 def full_run(tiny, tmp_path_factory):
-    """Every method, both viewspaces, every check, outputs and plots."""
+    """Every default method, both viewspaces, every check, outputs and plots."""
     out = tmp_path_factory.mktemp("run") / "out"
     run(tiny_settings(tiny, out))
     return out
@@ -125,7 +129,7 @@ def test_full_run_writes_every_output(full_run):
     plain = [e for e in episodes if e["check"] is None]
     # 2 models x 2 viewspaces x every method (a stochastic one with 10 seeds) x 2 starts, then
     # the checks on 1 start of original: each check's methods, position noise at 3 levels.
-    seeds = sum(10 if m.stochastic else 1 for m in METHODS_BY_NAME.values())
+    seeds = sum(10 if METHODS_BY_NAME[m].stochastic else 1 for m in DEFAULT_METHODS)
     n_checks = sum((3 if c == "position_noise" else 1) * len(check_methods(c)) for c in CHECKS)
     assert len(plain) == 2 * 2 * seeds * 2
     assert sorted(e["repeat"] for e in plain if e["method"] == "random")[-1] == 9
@@ -148,7 +152,7 @@ def test_full_run_writes_every_output(full_run):
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 2 * len(METHODS_BY_NAME) + n_checks  # (viewspace, method), the checks
+    assert len(rows) == 2 * len(DEFAULT_METHODS) + n_checks  # (viewspace, method), the checks
     by = {(r["viewspace"], r["method"], r["check"]): r for r in rows}
     random_original = [e for e in plain if e["method"] == "random" and e["viewspace"] == "original"]
     assert float(by[("original", "random", "")]["auc"]) == pytest.approx(
@@ -308,6 +312,36 @@ def test_a_missing_checkpoint_takes_the_shipped_weights_and_a_wrong_one_is_skipp
     assert str(missing) in bare.skipped["pcnbv"]
 
 
+def test_a_method_led_by_a_network_loads_it_and_is_skipped_without_it(tiny, tmp_path):
+    kw = dict(methods=("pcnbv_sph_vig", "vig_hull_sco"), viewspaces=("original",), checks=())
+    for batched in (True, False):
+        ev = evaluate(tiny_settings(tiny, tmp_path / f"b{batched}", batched=batched, **kw))
+        assert ev.skipped == {}
+        views = {(r.method, r.key, r.start): r.views for r in ev.records}
+        led = [r for r in ev.records if r.method == "vig_hull_sco"]
+        assert len(led) == 2 * len(STARTS)
+        for r in led:  # the network's two picks, then one plan (three decisions)
+            assert r.views[:3] == views[("pcnbv_sph_vig", r.key, r.start)][:3]
+            assert len(r.decision_times) == 3 and r.counts["planned"] == 7
+    # The network's checkpoint alone, for the method it leads: loaded though not selected.
+    alone = evaluate(
+        tiny_settings(tiny, tmp_path / "alone", **{**kw, "methods": ("vig_hull_sco",)})
+    )
+    assert [r.views for r in alone.records] == [r.views for r in led]
+    # A points network given for it: the method it leads is skipped, saying why.
+    wrong = {"pcnbv_sph_vig": str(tiny["pcnbv"])}
+    ev = evaluate(tiny_settings(tiny, tmp_path / "wrong", **kw, checkpoints=wrong))
+    assert ev.skipped["pcnbv_sph_vig"].endswith("holds a network on points, not signature")
+    assert ev.skipped["vig_hull_sco"] == (
+        f"the network of pcnbv_sph_vig it runs: {ev.skipped['pcnbv_sph_vig']}"
+    )
+    assert ev.records == []
+    with pytest.raises(EvalConfigError, match=r"checkpoints: no entry for \['pcnbv_sph_vig'\]"):
+        tiny_settings(
+            tiny, tmp_path / "none", checkpoints={}, **{**kw, "methods": ("vig_hull_sco",)}
+        )
+
+
 def test_disturbances(full_run, tiny, tmp_path):
     rng = np.random.default_rng(0)
     ball = random_ball(5000, 0.5, rng)
@@ -448,7 +482,8 @@ def test_default_config_composes_to_the_documented_defaults():
     with initialize_config_dir(str(ROOT / "conf"), version_base="1.3"):
         cfg = compose("eval", overrides=["run=x"])
     s = ENTRY.build(cfg)
-    assert s.methods == tuple(METHODS_BY_NAME) and s.datasets == ("unseen",)
+    assert s.methods == DEFAULT_METHODS and s.datasets == ("unseen",)
+    assert set(METHODS_BY_NAME) - set(s.methods) == {"pcnbv_vig"}
     assert s.viewspaces == ("original", "permuted") and s.start_views == (
         1,
         3,
@@ -462,6 +497,9 @@ def test_default_config_composes_to_the_documented_defaults():
     assert s.out_dir == Path("outputs/eval/x")
     assert s.checkpoints["pcnbv"] == "outputs/train/pcnbv_coverage_fold0/best.pt"
     assert s.checkpoints["pcnbv_sph"] == "outputs/train/pcnbv_sph_coverage_fold0/best.pt"
+    assert s.checkpoints["pcnbv_vig"] == "outputs/train/pcnbv_vig_fold0/best.pt"
+    assert s.checkpoints["pcnbv_sph_vig"] == "outputs/train/pcnbv_sph_vig_fold0/best.pt"
+    assert s.hull.network_views == 2
     assert s.check_start_views == (1, 10, 24)
     assert s.hull == PlannerSettings() and s.hull.dilate is False
     assert s.ig == VolumetricSettings() and s.workers == 0
@@ -586,11 +624,14 @@ def test_ig_learned_runs_the_given_scorer_and_its_bytes_decide_the_log(tiny, tmp
 
 
 def test_hull_policies_get_the_dilation_setting():
+    networks = {"pcnbv_sph_vig": NetworkPolicy(model=object(), input="signature")}
     for dilate in (False, True):
-        ctx = MethodContext({}, PlannerSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
+        ctx = MethodContext(networks, PlannerSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
         for method in PLANNERS:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
-            hull = policy.hull if method == "hull_ig" else policy
+            hull = (
+                policy.hull if method in ("hull_ig", "vig_hull_sco", "vig_hull_sco_sph") else policy
+            )
             if not isinstance(hull, InformationGainPolicy):  # the volumetric ones have no hull
                 assert hull.settings.dilate is dilate and hull.eps == 0.03, method
 

@@ -25,9 +25,12 @@ from nbv.policies.episode import run_episode
 from nbv.policies.lockstep import Batchable, EpisodeSpec, run_lockstep
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS, MethodContext
+from nbv.policies.two_stage import NetworkThenHullPolicy
 
 STARTS = (0, 1, 3, 7, 10, 15, 24, 27, 30, 32)
 VIEWSPACES = ("original", "permuted")
+#: The network methods the package ships weights for (the VIG ones may not be shipped yet).
+SHIPPED = [m for m in NETWORK_INPUTS if shipped_weights(m) is not None]
 
 
 @pytest.fixture(scope="module")
@@ -39,10 +42,13 @@ def model(tmp_path_factory):
 @pytest.fixture(scope="module")
 def shipped_fp32() -> MethodContext:
     """The shipped networks, every one in float32 (the batched and single forwards may then
-    differ only in the last bits of float32 sums)."""
+    differ only in the last bits of float32 sums). A network method without shipped weights runs
+    those of the first shipped one of its input: batching is the code's, not the weights'."""
     networks = {}
     for method, kind in NETWORK_INPUTS.items():
-        path = shipped_weights(method)
+        path = shipped_weights(method) or shipped_weights(
+            next(m for m in SHIPPED if NETWORK_INPUTS[m] == kind)
+        )
         networks[method] = (
             ConditionedPolicy.from_checkpoint(path)
             if kind.startswith("directions")
@@ -64,7 +70,7 @@ def _policies(ctx: MethodContext, method: str, check: str | None = None, sigma: 
     return out
 
 
-@pytest.mark.parametrize("method", list(NETWORK_INPUTS))
+@pytest.mark.parametrize("method", SHIPPED)
 def test_every_network_picks_the_views_of_one_at_a_time_inference(model, shipped_fp32, method):
     batched = run_lockstep(model, _policies(shipped_fp32, method))
     single = [run_episode(model, s.viewspace, s.start, s.policy)
@@ -90,14 +96,20 @@ def test_disturbed_networks_draw_and_pick_as_alone(model, shipped_fp32, check, s
 
 
 def test_mixed_policies_and_one_shot_plans_run_as_alone(model, shipped_fp32):
-    """Batched networks beside policies that decide alone (random, a one-shot planner, ig)."""
-    specs = lambda: [s for m in ("random", "hull_sco", "ig", "pcnbv", "vcnbv_map")  # noqa: E731
-                     for s in _policies(shipped_fp32, m)]  # fmt: skip
-    batched = run_lockstep(model, specs())
+    """Batched networks beside policies that decide alone (random, a one-shot planner, ig) and
+    a two-stage planner (its network's picks batched, its plan made alone)."""
+    methods = ("random", "hull_sco", "ig", "pcnbv", "vcnbv_map", "vig_hull_sco")
+    specs = lambda: [s for m in methods for s in _policies(shipped_fp32, m)]  # noqa: E731
+    mixed = specs()
+    batched = run_lockstep(model, mixed)
     single = [run_episode(model, s.viewspace, s.start, s.policy) for s in specs()]
     assert [e.views for e in batched] == [e.views for e in single]
     for a, b in zip(batched, single, strict=True):
         np.testing.assert_array_equal(a.vig, b.vig)
+    two_stage = [s.policy for s in mixed if isinstance(s.policy, NetworkThenHullPolicy)]
+    assert len(two_stage) == len(VIEWSPACES) * len(STARTS)
+    for policy in two_stage:  # two batched network decisions, then one plan of 7 views
+        assert len(policy.timings["network"]) == 2 and policy.counts["planned"] == 7
 
 
 def test_a_bad_start_or_a_visited_pick_is_refused(model, shipped_fp32):
@@ -112,12 +124,11 @@ def test_the_evaluator_records_the_same_episodes_batched_or_not(tmp_path):
     tiny = {
         "data": make_tiny_dataset(tmp_path / "data"),
         **{name: save_tiny_checkpoint(tmp_path / f"{name}.pt",
-                                      {"vcnbv": "directions", "vcnbv_map": "directions_map",
-                                       "pcnbv_sph": "signature"}.get(name, "points"))
-           for name in NETWORK_INPUTS},
+                                      "directions_map" if name == "vcnbv_map" else kind)
+           for name, kind in NETWORK_INPUTS.items()},
     }  # fmt: skip
     base = tiny_settings(tiny, Path(tmp_path / "batched"), checks=CHECKS, random_repeats=2,
-                         plots=False)  # fmt: skip
+                         plots=False, methods=tuple(METHODS))  # fmt: skip
     one = evaluate(base).records
     two = evaluate(replace(base, run="single", batched=False)).records
     assert len(one) == len(two) > 0

@@ -26,7 +26,7 @@ from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import METHODS, SHIPPED_SCORER
+from nbv.policies.registry import METHODS, SHIPPED_SCORER, MethodContext
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 
@@ -120,8 +120,11 @@ def all_policies(networks, seed: int = 0) -> dict:
         "random": RandomPolicy(rng(seed)),
         "spread": SpreadPolicy(rng(seed)),
         "oracle": OraclePolicy(),
+        "oracle_vig": OraclePolicy("vig"),
         "pcnbv": networks["points"].fresh(),
         "pcnbv_sph": networks["signature"].fresh(),
+        "pcnbv_vig": networks["points"].fresh(),
+        "pcnbv_sph_vig": networks["signature"].fresh(),
         "vcnbv": networks["directions"].fresh(),
         "vcnbv_map": networks["directions_map"].fresh(
             InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
@@ -135,6 +138,18 @@ def all_policies(networks, seed: int = 0) -> dict:
         ),
         "hull_sco_probes": HullSCOPolicy(rng(seed), probes=3, **hull),
         "hull_sco_replan": HullSCOReplanPolicy(rng(seed), **hull),
+        "vig_hull_sco": NetworkThenHullPolicy(
+            networks["signature"].fresh(), HullSCOPolicy(rng(seed), **hull)
+        ),
+        "vig_hull_sco_sph": NetworkThenHullPolicy(
+            networks["signature"].fresh(),
+            HullSCOPolicy(
+                rng(seed),
+                sph=True,
+                intrinsics=SMALL_CAMERA,
+                settings=PlannerSettings(n_samp=2048, lmax=2),
+            ),
+        ),
         "ig": InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA),
         "hull_ig": HullThenGainPolicy(
             HullSCOPolicy(rng(seed), **hull), InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
@@ -156,15 +171,17 @@ def test_every_policy_gives_a_valid_episode_and_the_oracle_leads_at_view_two(
     model, networks, viewspace
 ):
     for start in DEFAULT_START_VIEWS:
-        second = {}
+        second, second_vig = {}, {}
         for name, policy in all_policies(networks, seed=start).items():
             episode = run_episode(model, viewspace, start, policy)
             assert episode.views[0] == start, name
             assert len(set(episode.views)) == 10, name
             assert np.all(np.diff(episode.coverage) >= 0), name
             second[name] = episode.coverage[1]
-        # Greedy on the true coverage is the best possible second view.
+            second_vig[name] = episode.vig[1]
+        # Greedy on the true coverage (VIG) is the best possible second view by coverage (VIG).
         assert all(second["oracle"] >= c for c in second.values()), (start, second)
+        assert all(second_vig["oracle_vig"] >= v - 1e-12 for v in second_vig.values()), start
 
 
 def test_timings_are_recorded_per_decision(model, networks):
@@ -396,7 +413,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
     # it has not captured would pick otherwise on the blinded model.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 15
+    assert len(names) == 19
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])
@@ -512,6 +529,28 @@ def test_two_stage_takes_the_networks_picks_then_the_plan_of_the_whole_cloud(mod
     )
     with pytest.raises(ValueError, match="network_views=-1"):
         NetworkThenHullPolicy(networks["signature"].fresh(), one_shot, -1)
+
+
+def test_oracle_vig_picks_the_view_of_the_largest_true_vig_gain(model):
+    from scipy.spatial import ConvexHull
+
+    view = model.views["permuted"]
+    hulls = view.view_hulls()
+    ctx = MethodContext({}, PlannerSettings(), SMALL_CAMERA, 0.02, 10)
+    oracle = METHODS["oracle_vig"].build(ctx, np.random.default_rng(0))
+    episode = run_episode(model, "permuted", 3, oracle)
+    for i in range(1, 10):
+        seen = episode.views[:i]
+        before = ConvexHull(np.concatenate([hulls[v] for v in seen])).volume
+        gains = np.full(len(hulls), -np.inf)
+        for v in set(range(len(hulls))) - set(seen):
+            after = ConvexHull(np.concatenate([hulls[w] for w in [*seen, v]])).volume
+            gains[v] = (after - before) / model.gt_hull_volume
+        # The pick's gain is the largest (to Qhull's rounding), and the choice mattered.
+        assert gains[episode.views[i]] >= gains.max() - 1e-12, i
+        assert np.ptp(gains[np.isfinite(gains)]) > 1e-6, i
+        # Its VIG after the pick is the VIG before plus that gain.
+        assert episode.vig[i] == pytest.approx(episode.vig[i - 1] + gains.max(), abs=1e-9)
 
 
 def test_a_bfloat16_checkpoint_runs_in_bfloat16_only_where_the_cpu_has_it(tmp_path):

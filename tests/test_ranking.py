@@ -30,6 +30,8 @@ def tiny(tmp_path_factory) -> dict[str, Path]:
         "data": make_tiny_dataset(tmp / "data", models=2),
         "pcnbv": save_tiny_checkpoint(tmp / "pcnbv.pt", "points"),
         "pcnbv_sph": save_tiny_checkpoint(tmp / "pcnbv_sph.pt", "signature"),
+        "pcnbv_vig": save_tiny_checkpoint(tmp / "pcnbv_vig.pt", "points", seed=1),
+        "pcnbv_sph_vig": save_tiny_checkpoint(tmp / "pcnbv_sph_vig.pt", "signature", seed=1),
         "vcnbv": save_tiny_checkpoint(tmp / "vcnbv.pt", "directions"),
         "vcnbv_map": save_tiny_checkpoint(tmp / "vcnbv_map.pt", "directions_map"),
     }
@@ -78,7 +80,7 @@ def test_the_states_are_the_oracles_episode(tiny):
 def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
     ds = nbv.dataset.open(tiny["data"])
     model = ds.model(ds.keys()[1])
-    settings = EvalSettings(run="unused", progress=False,
+    settings = EvalSettings(run="unused", progress=False, methods=RANKED,
                             checkpoints={n: str(tiny[n]) for n in NETWORK_INPUTS})  # fmt: skip
     from nbv.eval.evaluate import load_networks
 

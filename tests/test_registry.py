@@ -17,16 +17,21 @@ from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
+    BASELINES,
     CHECKS,
+    DEFAULT_METHODS,
     METHODS,
     NETWORK_INPUTS,
     PLANNERS,
     SCORED,
     SHIPPED_SCORER,
+    Method,
     MethodContext,
     check_methods,
     method,
+    networks_of,
 )
+from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 
 
@@ -52,6 +57,32 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
     assert kinds["random"] is RandomPolicy and kinds["oracle"] is OraclePolicy
     assert kinds["spread"] is SpreadPolicy
     assert kinds["pcnbv"] is NetworkPolicy and kinds["pcnbv_sph"] is NetworkPolicy
+    # The oracles: greedy by the true coverage gain, and by the true VIG gain.
+    assert METHODS["oracle"].build(ctx, None).score == "coverage"
+    assert (
+        kinds["oracle_vig"] is OraclePolicy
+        and METHODS["oracle_vig"].build(ctx, None).score == "vig"
+    )
+    # Each network method runs its own loaded network (a fresh copy: its own timings).
+    for name in NETWORK_INPUTS:
+        policy = METHODS[name].build(ctx, np.random.default_rng(0))
+        assert policy.model is ctx.networks[name].model and policy is not ctx.networks[name]
+    # The two-stage planners: pcnbv_sph_vig's network, then the one-shot planner on the run's
+    # hull settings (the signature's hull for the sph one), after hull.network_views picks.
+    for name, sph in (("vig_hull_sco", False), ("vig_hull_sco_sph", True)):
+        policy = METHODS[name].build(ctx, np.random.default_rng(0))
+        assert kinds[name] is NetworkThenHullPolicy and policy.network_views == 2
+        assert policy.network.model is ctx.networks["pcnbv_sph_vig"].model
+        assert type(policy.hull) is HullSCOPolicy and policy.hull.sph is sph
+        assert policy.hull.settings is ctx.planner and policy.hull.probes == 0
+        assert policy.hull.n_views == 7 and policy.hull.eps == 0.02
+    three = dataclasses.replace(ctx, planner=PlannerSettings(network_views=3))
+    assert METHODS["vig_hull_sco"].build(three, np.random.default_rng(0)).network_views == 3
+    # Without its network loaded, a method that runs one says which.
+    bare = dataclasses.replace(ctx, networks={})
+    for name in ("pcnbv", "vig_hull_sco"):
+        with pytest.raises(ValueError, match="give checkpoints.pcnbv"):
+            METHODS[name].build(bare, np.random.default_rng(0))
     assert kinds["vcnbv"] is ConditionedPolicy
     assert kinds["hull_sco_replan"] is HullSCOReplanPolicy
     for name in ("hull_sco", "hull_sco_sph", "hull_sco_probes"):
@@ -89,21 +120,42 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
 
 def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
-        "random", "spread", "oracle", "pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map",
-        "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig",
-        "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
+        "random", "spread", "oracle", "oracle_vig", "pcnbv", "pcnbv_sph", "pcnbv_vig",
+        "pcnbv_sph_vig", "vcnbv", "vcnbv_map", "hull_sco", "hull_sco_sph", "hull_sco_probes",
+        "hull_sco_replan", "vig_hull_sco", "vig_hull_sco_sph", "ig", "hull_ig", "ig_learned",
+        "ig_area_factor", "ig_proximity",
     ]  # fmt: skip
-    assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "vcnbv": "directions",
+    assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "pcnbv_vig": "points",
+                              "pcnbv_sph_vig": "signature", "vcnbv": "directions",
                               "vcnbv_map": "directions"}  # fmt: skip
     assert PLANNERS == (
-        "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "ig", "hull_ig",
-        "ig_learned", "ig_area_factor", "ig_proximity",
+        "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco",
+        "vig_hull_sco_sph", "ig", "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
     )  # fmt: skip
+    # Every method runs by default but the point network trained on VIG (PCNBV's forwards are
+    # the costliest decisions of the default run).
+    assert DEFAULT_METHODS == tuple(m for m in METHODS if m != "pcnbv_vig")
+    # The methods made to raise VIG; the coverage baselines leave the VIG oracle out.
+    assert [m.name for m in METHODS.values() if m.score == "vig"] == [
+        "oracle_vig",
+        "pcnbv_vig",
+        "pcnbv_sph_vig",
+        "vig_hull_sco",
+        "vig_hull_sco_sph",
+    ]
+    assert BASELINES == ("random", "spread", "oracle")
+    # A method led by another's network names a network method; the networks each run.
+    led = {m.name: m.network for m in METHODS.values() if m.network is not None}
+    assert led == {"vig_hull_sco": "pcnbv_sph_vig", "vig_hull_sco_sph": "pcnbv_sph_vig"}
+    assert networks_of(
+        ["random", "vig_hull_sco", "pcnbv", "pcnbv_sph_vig", "vig_hull_sco_sph"]
+    ) == ("pcnbv_sph_vig", "pcnbv")
+    assert networks_of(DEFAULT_METHODS) == tuple(n for n in NETWORK_INPUTS if n != "pcnbv_vig")
     # Random and spread pick at random (spread among its ties): averaged over seeds.
     assert [m.name for m in METHODS.values() if m.stochastic] == ["random", "spread"]
     assert check_methods("position_noise")[-3:] == ("ig_learned", "ig_area_factor",
                                                     "ig_proximity")  # fmt: skip
-    assert [m.name for m in METHODS.values() if m.ground_truth] == ["oracle"]
+    assert [m.name for m in METHODS.values() if m.ground_truth] == ["oracle", "oracle_vig"]
     assert SCORED == ("ig_learned",)
     assert check_methods("random_cloud") == ("pcnbv", "pcnbv_sph")
     assert check_methods("permuted_state") == ("pcnbv", "pcnbv_sph")
@@ -117,8 +169,15 @@ def test_derived_lists_follow_the_entries():
 
 def test_unknown_names_are_refused_with_the_registered_ones():
     assert method("hull_sco") is METHODS["hull_sco"]
-    with pytest.raises(ValueError, match="registered: random, spread, oracle, pcnbv"):
+    with pytest.raises(ValueError, match="registered: random, spread, oracle, oracle_vig"):
         method("spread_out")
+    with pytest.raises(ValueError, match="unknown method 'dqn'"):
+        networks_of(["pcnbv", "dqn"])
+    build = METHODS["random"].build
+    with pytest.raises(ValueError, match="score='volume'"):
+        Method("m", "", build, score="volume")
+    with pytest.raises(ValueError, match="runs its own network"):
+        Method("m", "", build, network_input="points", network="pcnbv")
     with pytest.raises(ValueError, match="allowed: random_cloud, permuted_state, random_hull"):
         check_methods("noise")
 
@@ -137,6 +196,20 @@ def test_a_network_method_runs_its_checkpoint_else_the_shipped_weights(tmp_path,
     assert pcnbv.weights(None) == shipped_weights("pcnbv")
     with pytest.raises(ValueError, match="runs no network"):
         METHODS["ig"].weights(None)
+
+
+def test_the_vig_networks_fall_back_to_their_own_shipped_file(tmp_path, monkeypatch):
+    import nbv.assets.weights
+
+    # An empty weights folder: no shipped file yet, the clear error naming the method.
+    monkeypatch.setattr(nbv.assets.weights, "FOLDER", tmp_path)
+    for name in ("pcnbv_vig", "pcnbv_sph_vig"):
+        with pytest.raises(ValueError, match=f"method={name} needs trained weights"):
+            METHODS[name].weights(tmp_path / "missing.pt")
+        (tmp_path / f"{name}.pt").write_bytes(b"")
+        assert METHODS[name].weights(tmp_path / "missing.pt") == tmp_path / f"{name}.pt"
+    with pytest.raises(ValueError, match="runs no network"):
+        METHODS["vig_hull_sco"].weights(None)  # it runs pcnbv_sph_vig's: that method's weights
 
 
 def test_load_gives_the_policy_of_the_method_input():

@@ -34,7 +34,7 @@ from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VI
 from nbv.geometry.viewspace import ViewspaceError, get_viewspace, is_named
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
-from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS
+from nbv.policies.registry import CHECKS, DEFAULT_METHODS, METHODS, NETWORK_INPUTS, networks_of
 
 DATASETS = ("unseen", "test", "meshes")
 #: The two viewspaces every dataset renders (the networks' and the permuted one).
@@ -207,9 +207,13 @@ class EvalSettings:
             report.md, the PNG plots, hydra's ``.hydra/`` and ``eval.log``).
         out_root: the folder of the evaluation runs.
         methods: the methods to run (a name or a list), any of the registry's
-            (:mod:`nbv.policies.registry`; ``docs/methods.md``). A network method whose
-            checkpoint is missing runs on the weights the package ships (nbv/assets/weights/);
-            one whose checkpoint cannot be used is listed as skipped.
+            (:mod:`nbv.policies.registry`; ``docs/methods.md``); by default those it marks
+            ``by_default`` (every method but ``pcnbv_vig``, whose point-network forwards cost
+            as much as ``pcnbv``'s, the run's costliest decisions: name it to run it). A
+            network method whose checkpoint is
+            missing runs on the weights the package ships (nbv/assets/weights/); one whose
+            checkpoint cannot be used, or none shipped, is listed as skipped, and so is a
+            method led by its network.
         datasets: the models to evaluate (key ``dataset``: a name or a list): ``unseen`` (the 8
             unseen categories, split test, of the dataset in ``data_dir``), ``test`` (the test
             split of the 8 training categories of ``data_dir``), ``meshes`` (every mesh file of
@@ -234,7 +238,8 @@ class EvalSettings:
         n_views: views per episode, the start view included; at least 2.
         checkpoints: network method name -> its training checkpoint (``best.pt`` of
             ``python -m train``, or of ``python -m train.conditioned`` for the
-            viewspace-conditioned ones); every selected network method needs one.
+            viewspace-conditioned ones); every selected network method needs one, and so does
+            the network a selected method is led by (``vig_hull_sco``: ``pcnbv_sph_vig``'s).
         hull: the convex-hull set cover (:class:`~nbv.planning.settings.PlannerSettings`).
         ig: the volumetric information gain's occupancy map and scores
             (:class:`~nbv.planning.settings.VolumetricSettings`).
@@ -268,7 +273,7 @@ class EvalSettings:
 
     run: str = field(kw_only=True)
     out_root: Path = Path("outputs/eval")
-    methods: tuple[str, ...] = names_setting("methods", tuple(METHODS))
+    methods: tuple[str, ...] = names_setting("methods", DEFAULT_METHODS)
     datasets: tuple[str, ...] = names_setting("dataset", (), key="dataset", config_default=None)
     data_dir: Path = Path("data/generated/synthetic")
     mesh_dir: Path | None = setting(None, convert=_optional_path)
@@ -321,7 +326,7 @@ class EvalSettings:
         _allowed("methods", self.methods, tuple(METHODS))
         _allowed("dataset", self.datasets, DATASETS)
         _viewspaces("viewspace", self.viewspaces)
-        missing = sorted(set(NETWORK_INPUTS) & set(self.methods) - set(self.checkpoints))
+        missing = sorted(set(networks_of(self.methods)) - set(self.checkpoints))
         if missing:
             raise EvalConfigError(
                 f"checkpoints: no entry for {missing}; give checkpoints.<method>=<path of best.pt>"

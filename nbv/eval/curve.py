@@ -34,15 +34,14 @@ from nbv.eval.config import VIEWSPACES, DisturbSettings, EvalSettings
 from nbv.eval.evaluate import run as run_eval
 from nbv.models.view_conditioned import load_conditioned
 from nbv.planning.gain_scorer import load_scorer
-from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD
+from nbv.policies.registry import BASELINES, METHODS, NETWORK_INPUTS, SCORED, SPREAD
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean
 
 PROG = "nbv.eval.curve"
 log = logging.getLogger("nbv.eval.curve")
-#: The reference lines: the methods with neither a network nor a planner (random, spread, the
-#: oracle), in registry order.
-BASELINES = tuple(m.name for m in METHODS.values() if m.network_input is None and not m.planner)
+# The reference lines are the registry's BASELINES: the coverage methods with neither a network
+# nor a planner (random, spread, the oracle), in registry order.
 #: The viewspace-conditioned network methods: the plain one, then the one reading map features
 #: (the registry's order; it has no attribute for the map features yet).
 CONDITIONED = tuple(m for m, kind in NETWORK_INPUTS.items() if kind == "directions")

@@ -40,6 +40,7 @@ from nbv.policies.registry import (
     SCORED,
     MethodContext,
     check_methods,
+    networks_of,
 )
 
 log = logging.getLogger(__name__)
@@ -176,20 +177,27 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
     return out
 
 
+def _whose(method: str, network: str) -> str:
+    """How a skip reason names the network of ``network`` for ``method``."""
+    return "its network" if network == method else f"the network of {network} it runs"
+
+
 def unusable(settings: EvalSettings, networks: dict, sizes: dict[str, int]) -> dict[str, str]:
-    """``<method> on <viewspace>`` -> why: the networks with one output per view of a viewspace
-    of another size (PCNBV's 33 outputs on ``hemisphere_30``)."""
+    """``<method> on <viewspace>`` -> why: the selected methods that run a network with one
+    output per view of a viewspace of another size (PCNBV's 33 outputs on ``hemisphere_30``)."""
     out = {}
-    for method, policy in networks.items():
-        if not isinstance(policy, NetworkPolicy):
-            continue  # the viewspace-conditioned networks score any direction
-        outputs = policy.model.config.n_views
-        for vs in settings.viewspaces:
-            if sizes[vs] != outputs:
-                out[f"{method} on {vs}"] = (
-                    f"its network has one output per view of a {outputs}-view viewspace; "
-                    f"{vs} has {sizes[vs]} views"
-                )
+    for method in settings.methods:
+        for name in METHODS[method].networks:
+            policy = networks.get(name)
+            if not isinstance(policy, NetworkPolicy):
+                continue  # not loaded, or viewspace-conditioned: it scores any direction
+            outputs = policy.model.config.n_views
+            for vs in settings.viewspaces:
+                if sizes[vs] != outputs:
+                    out[f"{method} on {vs}"] = (
+                        f"{_whose(method, name)} has one output per view of a {outputs}-view "
+                        f"viewspace; {vs} has {sizes[vs]} views"
+                    )
     return out
 
 
@@ -228,27 +236,34 @@ def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, Networ
 def load_networks(
     settings: EvalSettings, n_views: int | None
 ) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
-    """The selected network methods' checkpoints, as they are (no fallback to the shipped
-    weights: :func:`with_shipped_weights`): (method -> policy, method -> skip reason).
+    """The checkpoints of the networks the selected methods run (:func:`networks_of`), as they
+    are (no fallback to the shipped weights: :func:`with_shipped_weights`): (network method ->
+    policy, selected method -> skip reason). A method led by another's network is skipped when
+    that network is.
 
     ``n_views``: the viewspace's size a PCNBV network must have; None: any (see
     :func:`unusable`)."""
     from nbv.models.checkpoints import CheckpointError
 
-    networks, skipped = {}, {}
-    for method, needed in NETWORK_INPUTS.items():
-        if method not in settings.methods:
-            continue
+    networks, failed = {}, {}
+    for method in networks_of(settings.methods):
+        needed = NETWORK_INPUTS[method]
         path = settings.checkpoints[method]
         try:
             policy = METHODS[method].load(path, n_views, settings.precision)
         except CheckpointError as err:
-            skipped[method] = str(err)
+            failed[method] = str(err)
             continue
         if policy.input != needed:
-            skipped[method] = f"checkpoint {path} holds a network on {policy.input}, not {needed}"
+            failed[method] = f"checkpoint {path} holds a network on {policy.input}, not {needed}"
             continue
         networks[method] = policy
+    skipped = {}
+    for method in settings.methods:
+        for name in METHODS[method].networks:
+            if name in failed:
+                reason = failed[name]
+                skipped[method] = reason if name == method else f"{_whose(method, name)}: {reason}"
     return networks, skipped
 
 
@@ -375,13 +390,15 @@ def worker_count(settings: EvalSettings) -> int:
 
 
 def with_shipped_weights(settings: EvalSettings) -> EvalSettings:
-    """The settings with each selected network's checkpoint as the registry resolves it
+    """The settings with the checkpoint of each network the selected methods run as the
+    registry resolves it
     (:meth:`~nbv.policies.registry.Method.weights`: the checkpoint when it exists, else the
     weights the package ships, logged). A missing checkpoint the package ships nothing for stays:
     :func:`load_networks` skips its method, naming the path."""
     found = {}
+    needed = networks_of(settings.methods)
     for method, path in settings.checkpoints.items():
-        if method not in settings.methods:
+        if method not in needed:
             continue
         try:
             weights = METHODS[method].weights(path)
@@ -417,7 +434,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     scorer = load_scorer(scorer_file) if scorer_file else None
     ident = identity(
         settings,
-        [Path(settings.checkpoints[m]) for m in runnable if m in networks]
+        [Path(settings.checkpoints[m]) for m in networks_of(runnable)]
         + ([scorer_file] if scorer_file else []),
         [info.path for info, _ in opened],
     )

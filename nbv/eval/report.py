@@ -55,6 +55,7 @@ from nbv.policies.registry import (
     RANDOM,
     SCORED,
     SPREAD,
+    networks_of,
 )
 from nbv.utils.atomic import write_text
 from nbv.utils.markdown import md_table
@@ -280,7 +281,7 @@ def report_body(evaluation) -> str:
                 f"  - flat ground truth (no hull volume, VIG undefined: NaN, left out of the VIG "
                 f"means): {', '.join(info.flat)}"
             )
-    nets = [m for m in s.checkpoints if m in methods]
+    nets = [m for m in s.checkpoints if m in networks_of(methods)]
     if nets:
         lines += ["", "Networks: " + "; ".join(
             f"`{m}` from `{s.checkpoints[m]}`"

@@ -1,7 +1,8 @@
 """The registry of view-selection methods: the one place that names them.
 
-Each :class:`Method` says its name, what it needs (a network checkpoint of some input, the ground
-truth), which disturbance checks apply to it, how it is drawn, the paper's timing row when the
+Each :class:`Method` says its name, what it needs (a network checkpoint of some input, another
+method's network, the ground truth), which disturbance checks apply to it, the score it is made to
+raise, whether the evaluation runs it by default, how it is drawn, the paper's timing row when the
 paper has one, and how to build a fresh policy for one episode. The evaluator, the disturbance
 checks, the report and the plots read from :data:`METHODS`, so adding a method is one entry here.
 """
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 
 log = logging.getLogger(__name__)
@@ -34,6 +36,8 @@ log = logging.getLogger(__name__)
 #: Disturbance checks (the paper's Fig. 18, and Gaussian position noise on the cloud a method
 #: sees): what each one replaces of a policy's input.
 CHECKS = ("random_cloud", "permuted_state", "random_hull", "position_noise")
+#: The scores a method may be made to raise (:attr:`Method.score`).
+SCORES = ("coverage", "vig")
 
 
 @dataclass(frozen=True)
@@ -41,7 +45,8 @@ class MethodContext:
     """What building a method's policy may use, the same for every episode of a run.
 
     Attributes:
-        networks: network method name -> a loaded :class:`NetworkPolicy`.
+        networks: network method name -> a loaded :class:`NetworkPolicy` (every network the
+            built methods run: :attr:`Method.networks`).
         planner: the convex-hull planner's settings.
         intrinsics: the dataset's camera.
         eps: the dataset's coverage distance (the planner's capture distance: of the raycast
@@ -76,6 +81,9 @@ class Method:
         network_input: ``points`` or ``signature`` when the method runs a trained PCNBV
             checkpoint of that input, ``directions`` for the viewspace-conditioned network (it
             needs ``checkpoints.<name>``); None otherwise.
+        network: the network method whose loaded network this method runs, when it is not a
+            network method itself (a planner led by a network's first picks); it needs that
+            method's ``checkpoints.<network>``. None otherwise.
         ground_truth: the method reads the ground truth (an upper reference, not a method a
             robot could run).
         checks: the disturbance checks that apply to it.
@@ -85,6 +93,12 @@ class Method:
         style: matplotlib colour and line style of its curves.
         learned_score: it ranks with the run's learned score (``MethodContext.scorer``, the
             evaluation's ``ig_scorer``).
+        score: what its picks are made to raise (:data:`SCORES`): ``coverage``, or ``vig``
+            for a method trained on VIG, greedy by it or led by a network trained on it (the
+            report pairs these with random on the VIG curve's AUC).
+        by_default: ``python -m nbv.eval`` runs it when ``methods`` is not given
+            (:data:`DEFAULT_METHODS`); False for a variant registered but too costly for every
+            run (run it by naming it).
         paper_times: the paper's Table 1 row, stage -> seconds per 9-view reconstruction
             (FACTS.md), when the paper times this method.
     """
@@ -100,6 +114,23 @@ class Method:
     style: tuple[str, str] = ("#8c564b", "-")
     learned_score: bool = False
     paper_times: Mapping[str, float] = field(default_factory=dict)
+    network: str | None = None
+    score: str = "coverage"
+    by_default: bool = True
+
+    def __post_init__(self) -> None:
+        if self.score not in SCORES:
+            raise ValueError(f"method {self.name}: score={self.score!r}; allowed: {SCORES}")
+        if self.network is not None and self.network_input is not None:
+            raise ValueError(f"method {self.name}: a network method runs its own network")
+
+    @property
+    def networks(self) -> tuple[str, ...]:
+        """The network methods whose loaded networks it runs (``MethodContext.networks`` must
+        hold them): itself for a network method, ``network`` for one led by another's."""
+        if self.network_input is not None:
+            return (self.name,)
+        return (self.network,) if self.network is not None else ()
 
     def weights(self, checkpoint: str | Path | None) -> Path:
         """The weights this network method runs: ``checkpoint`` when it exists, else the weights
@@ -141,6 +172,25 @@ class Method:
         if self.network_input == "directions":
             return ConditionedPolicy.from_checkpoint(path)
         return NetworkPolicy.from_checkpoint(path, n_views=n_views, precision=precision)
+
+
+def _loaded(ctx: MethodContext, name: str) -> NetworkPolicy:
+    """A fresh copy (empty timings) of the loaded network of method ``name``.
+
+    Raises:
+        ValueError: ``ctx.networks`` does not hold it (the message names it).
+    """
+    if name not in ctx.networks:
+        raise ValueError(
+            f"the network of {name} is not loaded (loaded: {sorted(ctx.networks) or 'none'}); "
+            f"give checkpoints.{name}"
+        )
+    return ctx.networks[name].fresh()
+
+
+def _network(name: str) -> Callable[[MethodContext, np.random.Generator], Policy]:
+    """The builder of the network method ``name``: a fresh copy of its loaded network."""
+    return lambda ctx, rng: _loaded(ctx, name)
 
 
 def _hull_policy(
@@ -186,10 +236,18 @@ ORACLE = Method(
     ground_truth=True,
     style=("#000000", "--"),
 )
+ORACLE_VIG = Method(
+    "oracle_vig",
+    "greedy by the true VIG gain (reads the ground truth: the VIG methods' upper reference)",
+    lambda ctx, rng: OraclePolicy("vig"),
+    ground_truth=True,
+    score="vig",
+    style=("#525252", "--"),
+)
 PCNBV = Method(
     "pcnbv",
     "PCNBV on the accumulated cloud (a training checkpoint)",
-    lambda ctx, rng: ctx.networks["pcnbv"].fresh(),
+    _network("pcnbv"),
     network_input="points",
     checks=("random_cloud", "permuted_state", "position_noise"),
     style=("#1f77b4", "-"),
@@ -198,11 +256,30 @@ PCNBV = Method(
 PCNBV_SPH = Method(
     "pcnbv_sph",
     "PCNBV on the cloud's spherical-harmonics signature (a training checkpoint)",
-    lambda ctx, rng: ctx.networks["pcnbv_sph"].fresh(),
+    _network("pcnbv_sph"),
     network_input="signature",
     checks=("random_cloud", "permuted_state", "position_noise"),
     style=("#17becf", "-"),
     paper_times={"signature": 2.53, "network": 0.02, "total": 2.55, "online": 2.55},
+)
+PCNBV_VIG = Method(
+    "pcnbv_vig",
+    "PCNBV on the accumulated cloud, trained on VIG (a checkpoint of `python -m train score=vig`)",
+    _network("pcnbv_vig"),
+    network_input="points",
+    score="vig",
+    style=("#aec7e8", "-."),
+    # PCNBV's forwards are the costliest decisions of the default run (issue 41): named only.
+    by_default=False,
+)
+PCNBV_SPH_VIG = Method(
+    "pcnbv_sph_vig",
+    "PCNBV on the cloud's spherical signature, trained on VIG (a checkpoint of `python -m train "
+    "score=vig model=pcnbv_sph`)",
+    _network("pcnbv_sph_vig"),
+    network_input="signature",
+    score="vig",
+    style=("#9edae5", "-."),
 )
 
 
@@ -255,6 +332,37 @@ HULL_SCO_PROBES = Method(
     lambda ctx, rng: _hull_policy(ctx, rng, probes=True),
     planner=True,
     style=("#9467bd", "-."),
+)
+
+
+def _two_stage(sph: bool) -> Callable[[MethodContext, np.random.Generator], Policy]:
+    """The builder of the two-stage planner: ``PCNBV_SPH_VIG``'s picks for ``hull.network_views``
+    decisions, then a one-shot plan (on the signature's hull with ``sph``) on the whole cloud."""
+    return lambda ctx, rng: NetworkThenHullPolicy(
+        _loaded(ctx, PCNBV_SPH_VIG.name),
+        _hull_policy(ctx, rng, sph=sph),
+        ctx.planner.network_views,
+    )
+
+
+VIG_HULL_SCO = Method(
+    "vig_hull_sco",
+    "the paper's two-stage planner: pcnbv_sph_vig picks `hull.network_views` views, then "
+    "hull_sco plans the rest on the hull of the whole cloud",
+    _two_stage(sph=False),
+    network=PCNBV_SPH_VIG.name,
+    planner=True,
+    score="vig",
+    style=("#ff9896", "--"),
+)
+VIG_HULL_SCO_SPH = Method(
+    "vig_hull_sco_sph",
+    "vig_hull_sco planning on the hull of the whole cloud's spherical signature",
+    _two_stage(sph=True),
+    network=PCNBV_SPH_VIG.name,
+    planner=True,
+    score="vig",
+    style=("#ffbb78", "--"),
 )
 HULL_SCO_REPLAN = Method(
     "hull_sco_replan",
@@ -330,14 +438,19 @@ METHODS: dict[str, Method] = {
         RANDOM,
         SPREAD,
         ORACLE,
+        ORACLE_VIG,
         PCNBV,
         PCNBV_SPH,
+        PCNBV_VIG,
+        PCNBV_SPH_VIG,
         VCNBV,
         VCNBV_MAP,
         HULL_SCO,
         HULL_SCO_SPH,
         HULL_SCO_PROBES,
         HULL_SCO_REPLAN,
+        VIG_HULL_SCO,
+        VIG_HULL_SCO_SPH,
         IG,
         HULL_IG,
         IG_LEARNED,
@@ -345,18 +458,21 @@ METHODS: dict[str, Method] = {
         IG_PROXIMITY,
     )
 }
-#: The methods that run a trained network: name -> the checkpoint input they need.
+#: The methods ``python -m nbv.eval`` runs when none are given (``by_default``), in report order.
+DEFAULT_METHODS: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.by_default)
+#: The network methods (those that run a trained network of their own): name -> the checkpoint
+#: input they need.
 NETWORK_INPUTS: dict[str, str] = {
     m.name: m.network_input for m in METHODS.values() if m.network_input is not None
 }
 #: The planner methods, in report order (the one-shot plan first: the reconstruction plot's pick).
 PLANNERS: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.planner)
-#: The baselines: methods that read no network, plan nothing and learn no score (random,
-#: spread, the oracle), in report order.
+#: The baselines of the coverage comparisons: methods made to raise coverage that read no
+#: network, plan nothing and learn no score (random, spread, the oracle), in report order.
 BASELINES: tuple[str, ...] = tuple(
     m.name
     for m in METHODS.values()
-    if m.network_input is None and not m.planner and not m.learned_score
+    if m.network_input is None and not m.planner and not m.learned_score and m.score == "coverage"
 )
 #: The methods that rank with a learned score file.
 SCORED: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.learned_score)
@@ -371,6 +487,19 @@ def method(name: str) -> Method:
     if name not in METHODS:
         raise ValueError(f"unknown method {name!r}; registered: {', '.join(METHODS)}")
     return METHODS[name]
+
+
+def networks_of(methods: Iterable[str]) -> tuple[str, ...]:
+    """The network methods whose networks ``methods`` run (:attr:`Method.networks`), each once,
+    in the order the methods first need them (a network method's own place for itself).
+
+    Raises:
+        ValueError: an unregistered method.
+    """
+    out: dict[str, None] = {}
+    for name in methods:
+        out.update(dict.fromkeys(method(name).networks))
+    return tuple(out)
 
 
 def check_methods(check: str) -> tuple[str, ...]:
