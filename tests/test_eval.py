@@ -148,6 +148,7 @@ def test_full_run_writes_every_output(full_run):
                     "## Position noise", "![noise.png]", "verdict vs spread",
                     "## Reconstruction, coverage and path metrics", "## The metrics minus spread",
                     "## The metrics minus random", "## Seconds per decision", "![metrics.png]",
+                    "## VIG-AUC minus random",
                     f"`ig_learned` from `{SHIPPED_SCORER}` (the weights the package"):  # fmt: skip
         assert section in report, section
     with open(full_run / "summary.csv", newline="") as handle:
@@ -161,6 +162,31 @@ def test_full_run_writes_every_output(full_run):
     assert float(by[("original", "random", "")]["coverage_2"]) == pytest.approx(
         np.mean([e["coverage"][1] for e in random_original]), abs=1e-6
     )
+
+
+def _vig_auc(vig: list) -> float:
+    """The AUC formula on a stored VIG curve (null: NaN)."""
+    v = np.array([np.nan if x is None else x for x in vig], dtype=float)
+    return float((v[:-1].sum() + 0.5 * v[-1]) / len(v))
+
+
+def test_the_vig_methods_vig_auc_is_paired_with_randoms(full_run):
+    episodes = [e for e in json.loads((full_run / "results.json").read_text())["episodes"]
+                if e["check"] is None and e["viewspace"] == "permuted"]  # fmt: skip
+    per: dict[tuple, list] = {}
+    for e in episodes:  # random's repeats averaged per episode
+        per.setdefault((e["method"], e["key"], e["start"]), []).append(_vig_auc(e["vig"]))
+    report = (full_run / "report.md").read_text()
+    section = report.split("## VIG-AUC minus random")[1].split("\n## ")[0]
+    rows = [line for line in section.splitlines() if line.startswith("| ")][1:]
+    vig_methods = ["oracle_vig", "pcnbv_sph_vig", "vig_hull_sco", "vig_hull_sco_sph"]
+    assert [r.split(" | ")[0] for r in rows] == [f"| {m}" for m in vig_methods]
+    for m, row in zip(vig_methods, rows, strict=True):
+        diffs = [np.mean(v) - np.mean(per[("random", k, s)])
+                 for (mm, k, s), v in per.items() if mm == m]  # fmt: skip
+        assert len(diffs) == 2 * len(STARTS) and np.isfinite(diffs).all()
+        # Columns: unseen / original, unseen / permuted.
+        assert row.split(" | ")[2].startswith(f"{np.mean(diffs):+.3f} ["), (m, row)
 
 
 def test_every_episode_has_the_fields_metrics_checked_independently(full_run, tiny):

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from nbv.policies.episode import auc
 from nbv.policies.registry import METHODS
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import Interval, bootstrap_mean
@@ -61,6 +62,12 @@ class EpisodeMean:
     zero_gain: float
     planned: float
     repeats: int
+
+    @property
+    def vig_auc(self) -> float:
+        """The AUC of the VIG curve (coverage's formula, :func:`nbv.policies.episode.auc`);
+        NaN where VIG is undefined after some view."""
+        return auc(self.vig)
 
 
 def groups(records: list, check: bool = False, seed: int = 0) -> dict[tuple, dict]:
@@ -164,24 +171,31 @@ class PairedDifference:
     mean_b: float
 
 
-def paired_from_means(means: dict, a: tuple, b: tuple, seed: int = 0) -> PairedDifference | None:
-    """AUC(b) - AUC(a) over the episodes both ran, with a bootstrap interval (models resampled).
+def paired_from_means(
+    means: dict, a: tuple, b: tuple, seed: int = 0, what: str = "auc"
+) -> PairedDifference | None:
+    """AUC(b) - AUC(a) (of coverage, or of the VIG curve) over the episodes both ran, with a
+    bootstrap interval (models resampled).
 
     Args:
         means: :func:`episode_means` of the records (computed once for many pairs: it is the
             costly part).
         a, b: the (dataset, viewspace, method, check or None) keys of each side.
         seed: the bootstrap's seed.
+        what: the :class:`EpisodeMean` value compared: ``auc`` (coverage's) or ``vig_auc``
+            (the VIG curve's); episodes where either side's is NaN are left out.
 
     Returns:
         None when no episode is shared.
     """
     ea, eb = means.get(a, {}), means.get(b, {})
-    shared = sorted(set(ea) & set(eb))
-    if not shared:
+    pairs = [(getattr(ea[e], what), getattr(eb[e], what), e) for e in sorted(set(ea) & set(eb))]
+    pairs = [p for p in pairs if np.isfinite(p[0]) and np.isfinite(p[1])]
+    if not pairs:
         return None
-    xa = np.array([ea[e].auc for e in shared])
-    xb = np.array([eb[e].auc for e in shared])
+    xa = np.array([p[0] for p in pairs])
+    xb = np.array([p[1] for p in pairs])
+    shared = [p[2] for p in pairs]
     return PairedDifference(
         bootstrap_mean(xb - xa, [k for k, _ in shared], seed), float(xa.mean()), float(xb.mean())
     )
