@@ -208,12 +208,11 @@ class EvalSettings:
         out_root: the folder of the evaluation runs.
         methods: the methods to run (a name or a list), any of the registry's
             (:mod:`nbv.policies.registry`; ``docs/methods.md``); by default those it marks
-            ``by_default`` (every method but ``pcnbv_vig``, whose point-network forwards cost
-            as much as ``pcnbv``'s, the run's costliest decisions: name it to run it). A
-            network method whose checkpoint is
-            missing runs on the weights the package ships (nbv/assets/weights/); one whose
-            checkpoint cannot be used, or none shipped, is listed as skipped, and so is a
-            method led by its network.
+            ``by_default``: every method but ``pcnbv_vig`` and ``oracle_vig``, each as costly
+            as ``pcnbv``, the run's costliest (name them to run them). A network method whose
+            checkpoint is missing runs on the weights the package ships (nbv/assets/weights/);
+            one whose checkpoint cannot be used, or none shipped, is listed as skipped, and so
+            is a method led by its network.
         datasets: the models to evaluate (key ``dataset``: a name or a list): ``unseen`` (the 8
             unseen categories, split test, of the dataset in ``data_dir``), ``test`` (the test
             split of the 8 training categories of ``data_dir``), ``meshes`` (every mesh file of
