@@ -559,7 +559,7 @@ def test_cli_refuses_a_bad_method_with_one_line(tmp_path):
         cwd=ROOT, capture_output=True, text=True,
     )  # fmt: skip
     assert done.returncode == 2
-    assert "methods: unknown 'magic'; allowed: random, spread, oracle, pcnbv" in done.stderr
+    assert "methods: unknown 'magic'; allowed: random, spread, oracle, oracle_vig" in done.stderr
     assert not list(tmp_path.rglob("results.json"))
     assert not list(tmp_path.iterdir())  # not even hydra's run folder
 
