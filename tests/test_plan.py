@@ -124,6 +124,12 @@ def test_a_network_method_defaults_to_its_paths_checkpoint(box, tmp_path):
     assert ENTRY.build(composed([f"mesh={box}", f"out_dir={tmp_path}"])).checkpoint is None
 
 
+def test_a_planner_led_by_a_network_defaults_to_the_leading_networks_checkpoint(box, tmp_path):
+    cfg = composed([f"mesh={box}", f"out_dir={tmp_path}", "method=vig_hull_sco",
+                    f"paths.checkpoints.pcnbv_sph_vig={tmp_path / 'vig.pt'}"])  # fmt: skip
+    assert ENTRY.build(cfg).checkpoint == tmp_path / "vig.pt"
+
+
 def test_candidates_sit_around_the_object_at_twice_its_radius_or_the_given_distance():
     frame = ObjectFrame(CENTER, RADIUS, "y")
     normalised = candidate_poses(original_viewspace(), frame, None)

@@ -25,7 +25,7 @@ from nbv.plan.candidates import CandidateSettings
 from nbv.plan.object_estimate import EstimateSettings
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import EPISODE_VIEWS
-from nbv.policies.registry import IG, METHODS, NETWORK_INPUTS
+from nbv.policies.registry import IG, METHODS, networks_of
 
 #: The methods a user may plan with: those that do not read the ground truth.
 PLANNABLE = tuple(name for name, m in METHODS.items() if not m.ground_truth)
@@ -141,8 +141,10 @@ class PlanSettings:
         views: captures input: the views of the folder to plan from, by their index in
             ``views.json`` (e.g. ``[0, 7, 14]``), in that order; null takes them all.
         method: a registered method that does not read the ground truth (:data:`PLANNABLE`).
-        checkpoint: the weights of a network method; null = ``paths.checkpoints.<method>``, and
-            when that file does not exist the weights the package ships.
+        checkpoint: the weights of the network the method runs (its own, or for a planner led by
+            a network such as ``vig_hull_sco`` the leading one's); null =
+            ``paths.checkpoints.<network>``, and when that file does not exist the weights the
+            package ships.
         viewspace: the candidate views (:class:`ViewspaceSettings`).
         object: the object's sphere or region of interest (:class:`ObjectSettings`).
         candidates: where the robot's camera may go; the candidates it cannot reach are dropped
@@ -250,8 +252,9 @@ class PlanEntry(Entry):
         settings = super().build(cfg)
         if settings.mesh is None and settings.captures is None:
             raise ConfigError(INPUTS)
-        if settings.checkpoint is None and settings.method in NETWORK_INPUTS:
-            default = cfg["paths"]["checkpoints"].get(settings.method)
+        network = networks_of([settings.method])
+        if settings.checkpoint is None and network:
+            default = cfg["paths"]["checkpoints"].get(network[0])
             if default:
                 settings = dataclasses.replace(settings, checkpoint=Path(default))
         return settings

@@ -17,7 +17,7 @@ import numpy as np
 from nbv.geometry.camera import Intrinsics
 from nbv.plan.config import PlanSettings
 from nbv.policies.episode import EpisodeState, Policy
-from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
+from nbv.policies.registry import METHODS, MethodContext, networks_of
 from nbv.utils.seeding import named_rng
 
 if TYPE_CHECKING:
@@ -31,16 +31,17 @@ def policy_rng(seed: int, method: str) -> np.random.Generator:
 
 
 def method_context(settings: PlanSettings, camera: Intrinsics, n_views: int) -> MethodContext:
-    """The registry's context of the plan's method (its network loaded when it has one).
+    """The registry's context of the plan's method (the network it runs loaded, its own or, for
+    a planner led by a network, the leading one's).
 
     Args:
         settings: the plan's settings.
         camera: the planner's camera.
         n_views: the candidates' number (a PCNBV network has one output per view).
     """
-    networks = {}
-    if settings.method in NETWORK_INPUTS:
-        networks[settings.method] = load_network(settings, n_views)
+    networks = {
+        name: load_network(settings, n_views, name) for name in networks_of([settings.method])
+    }
     return MethodContext(
         networks=networks,
         planner=settings.hull,
@@ -51,16 +52,18 @@ def method_context(settings: PlanSettings, camera: Intrinsics, n_views: int) -> 
     )
 
 
-def load_network(settings: PlanSettings, n_views: int) -> NetworkPolicy | ConditionedPolicy:
-    """The network policy of a network method: ``checkpoint``, else the weights the package
-    ships (:meth:`nbv.policies.registry.Method.weights`).
+def load_network(
+    settings: PlanSettings, n_views: int, name: str
+) -> NetworkPolicy | ConditionedPolicy:
+    """The network policy of the network method ``name`` the plan runs: ``checkpoint``, else
+    the weights the package ships (:meth:`nbv.policies.registry.Method.weights`).
 
     Raises:
         ValueError: no weights, or a file that is not a usable checkpoint (``checkpoint: ...``).
     """
     from nbv.models.checkpoints import CheckpointError
 
-    method = METHODS[settings.method]
+    method = METHODS[name]
     path = method.weights(settings.checkpoint)
     try:
         return method.load(path, n_views)
