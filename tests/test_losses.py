@@ -88,10 +88,9 @@ def test_the_weight_penalty_takes_the_encoders_matrices_or_every_matrix():
     # Every matrix; biases, batch norm and the attention's gamma never.
     assert every == [n for n, p in params.items() if p.ndim > 1]
     assert {n.split(".")[0] for n in encoder} == {"features", "attention", "convs"}
-    head = sum(float((params[n] ** 2).sum()) for n in ("head.0.weight", "head.2.weight"))
-    assert float(weight_penalty(net, "all") - weight_penalty(net, "encoder")) == pytest.approx(
-        head, rel=1e-5
-    )
+    head = sum(float((params[n].detach() ** 2).sum()) for n in ("head.0.weight", "head.2.weight"))
+    difference = weight_penalty(net, "all") - weight_penalty(net, "encoder")
+    assert difference.item() == pytest.approx(head, rel=1e-5)
     # The encoder's penalty sends no gradient into the head.
     weight_penalty(net, "encoder").backward()
     assert (

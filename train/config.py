@@ -160,11 +160,13 @@ class TrainSettings:
             run's files and starts afresh.
         random_repeats: the held-out report averages the random baseline over this many seeds
             per episode.
-        loss: ``squared`` (the paper's: squared error against the raw gains, summed over the V
-            outputs), ``normalised`` (the same on gains divided by the sample's largest),
+        loss: ``normalised`` (squared error against the gains divided by the sample's largest,
+            summed over the V outputs: every sample's ranking weighs alike), ``squared`` (the
+            paper's: the same on the raw gains, whose late steps weigh almost nothing),
             ``listwise`` (softmax cross-entropy over the unvisited views against the gains
             normalised to sum to 1) or ``pairwise`` (RankNet's logistic loss over pairs of
-            unvisited views); :mod:`train.losses`.
+            unvisited views); :mod:`train.losses`. ``normalised`` ranked best and played the best
+            episodes on the validation split (docs/training.md).
         augment: map each training sample by a random exact symmetry of its viewspace (the
             original 33 views have 16: 8 rotations about the up axis and their mirror images;
             :mod:`train.augment`). A viewspace without symmetry trains unaugmented.
@@ -205,7 +207,7 @@ class TrainSettings:
     select: str = _one_of(SELECTIONS, "valid")
     resume: bool = True
     random_repeats: int = _at_least(10, 1)
-    loss: str = _one_of(LOSSES, "squared")
+    loss: str = _one_of(LOSSES, "normalised")
     augment: bool = True
     loader_workers: int = _at_least(0, 0)
     pin_memory: bool = True

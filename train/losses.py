@@ -1,9 +1,11 @@
 """Training losses of the per-view gain networks.
 
-* ``squared`` (the paper's, the default): the sum over the V outputs of the squared error against
-  the raw gains, mean over the batch. The large gains of a trajectory's first steps dominate it.
-* ``normalised``: the same on targets divided by the sample's largest gain, so that every sample's
-  ranking weighs alike (a sample without gain, all 0, stays 0).
+* ``squared`` (the paper's): the sum over the V outputs of the squared error against the raw
+  gains, mean over the batch. The large gains of a trajectory's first steps dominate it: its late
+  steps (2-9, 80 % of the samples) carry under 0.4 % of it.
+* ``normalised`` (the default of ``python -m train``): the same on targets divided by the sample's
+  largest gain, so that every sample's ranking weighs alike (a sample without gain, all 0, stays
+  0).
 * ``listwise``: softmax cross-entropy over the unvisited views, the outputs as logits, against the
   gains normalised to sum to 1: the network learns which views gain most relative to the others,
   not the gains' scale. Samples without gain take no part. The outputs are then scores, not gains;
@@ -13,6 +15,9 @@
   over the sample's pairs. Every pair weighs alike, as in the rank correlation the training
   reports; the listwise loss instead weighs the views by their share of the gain. It depends on
   the gains only through their order. Samples whose unvisited views all gain alike take no part.
+
+The weight penalty added to the loss (``l2`` times :func:`weight_penalty`) takes every weight
+matrix or the point encoder's alone (``l2_scope``, :func:`penalised`).
 """
 
 from __future__ import annotations
