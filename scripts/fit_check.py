@@ -7,8 +7,9 @@ is trained on? (A developer tool; :mod:`train.fitcheck`.)
 Trains a fresh network with the steps of ``python -m train`` (its loss, weight penalty and
 learning-rate schedule) on the samples of the first ``--models`` models of the train split, and
 prints after every epoch the Spearman correlation of its predictions with the true gains on those
-same samples: overall, at early steps (0-1) and at late steps (2 and later). Nothing is written
-but ``--out`` (the rows as JSON) when given.
+same samples: overall, at early steps (0-1) and at late steps (2 and later). A setting not given
+keeps ``python -m train``'s default, but batch 8, float32 and no augmentation (as the check in
+``tests/test_train.py``). Nothing is written but ``--out`` (the rows as JSON) when given.
 """
 
 from __future__ import annotations
@@ -48,12 +49,12 @@ def parse(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--dataset", type=Path, default=ROOT / "data" / "generated" / "synthetic")
     p.add_argument("--score", choices=("coverage", "vig"), default="coverage")
-    p.add_argument("--lr", type=float, default=1e-3)
-    p.add_argument("--lr-decay", type=float, default=1.0, help="factor every --lr-step-epochs")
-    p.add_argument("--lr-step-epochs", type=int, default=1)
+    p.add_argument("--lr", type=float, default=None, help="default: python -m train's")
+    p.add_argument("--lr-decay", type=float, default=None, help="factor every --lr-step-epochs")
+    p.add_argument("--lr-step-epochs", type=int, default=None)
     p.add_argument("--l2", type=float, default=None, help="default: python -m train's")
     p.add_argument("--l2-scope", choices=L2_SCOPES, default=None)
-    p.add_argument("--batch-size", type=int, default=8)
+    p.add_argument("--batch-size", type=int, default=8, help="8: a few batches of a few models")
     p.add_argument("--augment", action="store_true", help="map samples by random symmetries")
     p.add_argument("--precision", default="fp32", choices=("auto", "fp32", "bf16"))
     p.add_argument("--threads", type=int, default=1)
@@ -71,13 +72,13 @@ def main(argv: list[str] | None = None) -> int:
     from train.augment import Augmentation
     from train.fitcheck import first_models, fit_check
 
-    given = {k: v for k, v in (("loss", args.loss), ("l2", args.l2), ("l2_scope", args.l2_scope))
-             if v is not None}  # fmt: skip
+    # What is not given keeps python -m train's default.
+    optional = ("loss", "lr", "lr_decay", "lr_step_epochs", "l2", "l2_scope")
+    given = {k: getattr(args, k) for k in optional if getattr(args, k) is not None}
     settings = TrainSettings(
         dataset=args.dataset, out_dir=Path("unused"), score=ScoreSettings(args.score),
         model=model_settings(args.model), seed=args.seed, epochs=args.epochs,
-        batch_size=args.batch_size, lr=args.lr, lr_decay=args.lr_decay,
-        lr_step_epochs=args.lr_step_epochs, precision=args.precision, threads=args.threads,
+        batch_size=args.batch_size, precision=args.precision, threads=args.threads,
         progress=False, augment=args.augment, **given,
     )  # fmt: skip
     samples = first_models(load_samples(args.dataset, args.score), args.models)
@@ -87,8 +88,9 @@ def main(argv: list[str] | None = None) -> int:
         directions = nbv.dataset.open(args.dataset).viewspaces[viewspace]
         augmentation = Augmentation(directions, int(samples.attrs.get("lmax", 3)))
     models = ", ".join(dict.fromkeys(samples.key.tolist()))
-    print(f"{settings.model.name}, loss {settings.loss}, lr {settings.lr}, l2 {settings.l2} "
-          f"({settings.l2_scope}): {len(samples)} samples of {models}")  # fmt: skip
+    print(f"{settings.model.name}, loss {settings.loss}, lr {settings.lr} (x {settings.lr_decay} "
+          f"every {settings.lr_step_epochs} epochs), l2 {settings.l2} ({settings.l2_scope}): "
+          f"{len(samples)} samples of {models}")  # fmt: skip
     print("epoch  loss        spearman  early   late    best-view hits")
     start = time.perf_counter()
     rows = []
