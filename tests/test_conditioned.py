@@ -320,11 +320,13 @@ def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset
     episode = run_episode(ds.model(ds.keys(split="valid")[0]), "permuted", 3, mapped)
     assert len(set(episode.views)) == 10
     missing = str(tmp_path / "no.pt")
-    checkpoints = {"vcnbv": missing, "vcnbv_map": missing, "pcnbv": missing, "pcnbv_sph": missing}
+    checkpoints = {
+        name: missing for name in ("vcnbv", "vcnbv_map", "pcnbv", "pcnbv_sph", "pcnbv_sph_vig")
+    }
     settings = EvalSettings(run="e", out_root=tmp_path, checkpoints=checkpoints)
     replaced = with_shipped_weights(settings).checkpoints
     assert replaced["vcnbv"] == str(path)
-    for method in ("pcnbv", "pcnbv_sph", "vcnbv_map"):  # shipped ones replace a missing one
+    for method in ("pcnbv", "pcnbv_sph", "pcnbv_sph_vig", "vcnbv_map"):  # shipped ones replace
         assert replaced[method] == str(shipped_weights(method) or missing)
     kept = EvalSettings(
         run="e", out_root=tmp_path, checkpoints={**replaced, "vcnbv": str(tmp_path / "shipped.pt")}
