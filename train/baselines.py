@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from nbv.dataset.samples import SampleSet
+from nbv.geometry.viewspace import angular_distances
 from nbv.utils.atomic import write_text
 from train.metrics import EARLY_STEPS, spearman_by_stage
 
@@ -57,12 +58,10 @@ def nearest_visited_angles(directions: np.ndarray, view_state: np.ndarray) -> np
         (S, V) float64 radians in [0, pi]: 0 for a visited view, pi for every view of a sample
         with none visited.
     """
-    unit = directions / np.linalg.norm(directions, axis=1, keepdims=True)
-    cosines = np.clip(unit @ unit.T, -1.0, 1.0)  # (V, V)
+    between = np.deg2rad(angular_distances(directions, directions))  # (V, V)
     state = np.asarray(view_state, dtype=bool)
-    # The largest cosine to a visited view; -1 (pi) where nothing is visited.
-    nearest = np.where(state[:, None, :], cosines[None], -1.0).max(axis=2)
-    return np.arccos(nearest)
+    # pi where nothing is visited.
+    return np.where(state[:, None, :], between[None], np.pi).min(axis=2)
 
 
 def normalised_targets(target: np.ndarray) -> np.ndarray:

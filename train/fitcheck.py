@@ -16,11 +16,9 @@ import numpy as np
 import torch
 
 from nbv.dataset.samples import SampleSet
-from nbv.models.config import PCNBVConfig
-from nbv.models.pcnbv import PCNBV
 from train.augment import Augmentation
 from train.config import TrainSettings
-from train.loop import choose_device, predict, ranking_metrics, train_epoch
+from train.loop import choose_device, fresh_training, predict, ranking_metrics, train_epoch
 
 __all__ = ["first_models", "fit_check"]
 
@@ -61,13 +59,7 @@ def fit_check(
     if settings.threads:
         torch.set_num_threads(settings.threads)
     device = choose_device(settings.device)
-    torch.manual_seed(settings.seed)
-    n_views = samples.view_state.shape[1]
-    model = PCNBV(PCNBVConfig(n_views=n_views, **settings.model.net)).to(device)
-    optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
-    scheduler = torch.optim.lr_scheduler.StepLR(
-        optimizer, settings.lr_step_epochs, settings.lr_decay
-    )
+    model, optimizer, scheduler = fresh_training(settings, samples.view_state.shape[1], device)
     rows = []
     for epoch in range(settings.epochs):
         stats = train_epoch(model, optimizer, samples, settings, epoch, device, augmentation)

@@ -175,6 +175,20 @@ def predict(
     return pred, float(loss)
 
 
+def fresh_training(
+    settings: TrainSettings, n_views: int, device: torch.device
+) -> tuple[PCNBV, torch.optim.Optimizer, torch.optim.lr_scheduler.StepLR]:
+    """A fresh network of ``settings.model`` with ``n_views`` outputs (initialised from
+    ``settings.seed``), its Adam optimiser at ``lr`` and the step decay of the learning rate."""
+    torch.manual_seed(settings.seed)
+    model = PCNBV(PCNBVConfig(n_views=n_views, **settings.model.net)).to(device)
+    optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
+    scheduler = torch.optim.lr_scheduler.StepLR(
+        optimizer, settings.lr_step_epochs, settings.lr_decay
+    )
+    return model, optimizer, scheduler
+
+
 def train_epoch(
     model: PCNBV,
     optimizer: torch.optim.Optimizer,
@@ -371,13 +385,7 @@ def _train(settings: TrainSettings) -> dict:
     probe_rows = np.random.default_rng(settings.seed).permutation(len(train))[:300]
     probe = train.select(np.sort(probe_rows))
 
-    torch.manual_seed(settings.seed)
-    config = PCNBVConfig(n_views=n_views, **settings.model.net)
-    model = PCNBV(config).to(device)
-    optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
-    scheduler = torch.optim.lr_scheduler.StepLR(
-        optimizer, settings.lr_step_epochs, settings.lr_decay
-    )
+    model, optimizer, scheduler = fresh_training(settings, n_views, device)
     out_dir = settings.out_dir
     out_dir.mkdir(parents=True, exist_ok=True)
     if not settings.resume:
