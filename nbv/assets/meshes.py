@@ -1,6 +1,7 @@
 """Meshes: loading, validation, normalisation, surface sampling and catalogues of real data.
 
-* :func:`load_mesh` reads OBJ, PLY, OFF, STL, GLB and glTF files through trimesh. Scenes are
+* :func:`load_mesh` reads OBJ, PLY, OFF, STL, GLB and glTF files through trimesh, and PLY files
+  with triangle strips (Stanford's scans) through :mod:`nbv.assets.ply`. Scenes are
   flattened into one mesh (node transforms applied), polygons are triangulated, and trimesh's
   "processing" (vertex merging, face removal) is switched off so that the geometry is what the
   file holds. Vertices that no face uses are dropped; they are not part of the surface and would
@@ -28,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+
+from nbv.assets.ply import has_strips, read_ply_triangles
 
 #: File suffixes :func:`load_mesh` reads (compared in lower case).
 MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl", ".glb", ".gltf")
@@ -171,15 +174,19 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
         reason = "is a directory, not a file" if path.is_dir() else "no such file"
         raise MeshError(f"{path}: cannot read mesh: {reason}")
     try:
-        # process=False: no merging or face removal, the geometry stays as the file has it.
-        loaded = trimesh.load_mesh(
-            str(path), file_type=suffix[1:], process=False, skip_materials=True
-        )
-    except Exception as err:  # any reader failure means a bad file, whatever trimesh raises
+        if suffix == ".ply" and has_strips(path):
+            # trimesh reads no strips: Stanford's scans would have no faces.
+            vertices, faces = read_ply_triangles(path)
+        else:
+            # process=False: no merging or face removal, the geometry stays as the file has it.
+            loaded = trimesh.load_mesh(
+                str(path), file_type=suffix[1:], process=False, skip_materials=True
+            )
+            vertices = np.asarray(loaded.vertices, dtype=np.float64)
+            faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
+    except Exception as err:  # any reader failure means a bad file, whatever the reader raises
         detail = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
         raise MeshError(f"{path}: cannot read mesh ({detail})") from err
-    vertices = np.asarray(loaded.vertices, dtype=np.float64)
-    faces = np.asarray(loaded.faces, dtype=np.int64).reshape(-1, 3)
     validate_mesh(vertices, faces, str(path))
     vertices, faces = _drop_unused_vertices(vertices, faces)
     return Mesh(vertices, faces, str(path))
