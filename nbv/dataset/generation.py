@@ -133,8 +133,10 @@ class GenerationSettings:
 
     Attributes:
         source: where meshes come from: ``synthetic``, ``shapenet``, ``stanford``, ``linemod``,
-            ``homebrew`` or ``folder``.
-        root: folder of the source's meshes (every source but synthetic).
+            ``homebrew``, ``folder``, or the real objects ``make real-data`` installs, ``ycb``
+            and ``scans``.
+        root: folder of the source's meshes (every source but synthetic; ``ycb`` and ``scans``
+            default to where ``make real-data`` puts them).
         categories: ShapeNet only: category names or synset ids; null = the 8 training and 8
             unseen categories (those the folder holds); ``[all]`` = every synset folder.
         synthetic: the synthetic source's size (:class:`Synthetic`).

@@ -3,7 +3,8 @@
 A shard file holds::
 
     / (attrs)                   schema_version, eps, n_gt, width, height, fx, fy, cx, cy, seed,
-                                config (JSON of the settings that shape the data)
+                                licence (of the source's meshes), config (JSON of the settings
+                                that shape the data)
     /viewspaces/<name>          (V, 3) float64 camera positions
     /splits/<split>             keys of the models in that split (variable-length strings)
     /failures                   (K, 2) strings: key, reason of each model that could not be made

@@ -36,7 +36,10 @@ from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
 from nbv.policies.registry import CHECKS, DEFAULT_METHODS, METHODS, NETWORK_INPUTS, networks_of
 
-DATASETS = ("unseen", "test", "meshes")
+#: The datasets prepared from meshes (rendered, scored and cached by :mod:`nbv.eval.prepare`):
+#: name -> the dataset source they are made with (nbv.dataset.sources).
+PREPARED = {"meshes": "folder", "ycb": "ycb", "scans": "scans"}
+DATASETS = ("unseen", "test", *PREPARED)
 #: The two viewspaces every dataset renders (the networks' and the permuted one).
 VIEWSPACES = ("original", "permuted")
 #: What ``viewspace`` may name, as a message lists it.
@@ -216,8 +219,10 @@ class EvalSettings:
         datasets: the models to evaluate (key ``dataset``: a name or a list): ``unseen`` (the 8
             unseen categories, split test, of the dataset in ``data_dir``), ``test`` (the test
             split of the 8 training categories of ``data_dir``), ``meshes`` (every mesh file of
-            ``mesh_dir``, prepared through the dataset pipeline and cached). null = unseen, plus
-            meshes when ``mesh_dir`` is set.
+            ``mesh_dir``, prepared through the dataset pipeline and cached), ``ycb`` (the 78 YCB
+            objects) or ``scans`` (15 classic scanned models), the real objects ``make
+            real-data`` installs, prepared like ``meshes``. null = unseen, plus meshes when
+            ``mesh_dir`` is set.
         data_dir: a dataset folder made by ``make dataset``.
         mesh_dir: a folder of mesh files (obj, ply, off, stl, glb, gltf; searched recursively),
             a complex-object test set; null = none.

@@ -23,8 +23,9 @@ from typing import NamedTuple
 
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
+from nbv.assets.real_objects import default_root
 from nbv.dataset.reader import Dataset
-from nbv.eval.config import EvalSettings
+from nbv.eval.config import PREPARED, EvalSettings
 from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.metrics import ModelMetrics, fill_metrics
@@ -127,17 +128,17 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
     out = []
     for name in settings.datasets:
         failures: list[tuple[str, str]] = []
-        if name == "meshes":
-            path, failures = prepare_meshes(
-                Path(settings.mesh_dir), settings.prepare, settings.progress
-            )
+        if name in PREPARED:
+            source = PREPARED[name]
+            root = Path(settings.mesh_dir) if source == "folder" else default_root(source)
+            path, failures = prepare_meshes(root, settings.prepare, settings.progress, source)
         else:
             path = Path(settings.data_dir)
         try:
             ds = nbv.dataset.open(path, eps=settings.prepare.eps)
         except ValueError as err:
             raise EvalDataError(f"dataset={name} (data_dir={str(path)!r}): {err}") from None
-        if name == "meshes":
+        if name in PREPARED:
             keys = ds.keys()
         else:
             wanted = UNSEEN_CATEGORIES if name == "unseen" else TRAIN_CATEGORIES
@@ -145,7 +146,7 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
         if not keys:
             which = (
                 "models"
-                if name == "meshes"
+                if name in PREPARED
                 else (
                     f"test-split models of the 8 {'unseen' if name == 'unseen' else 'training'} "
                     "categories"
@@ -213,7 +214,7 @@ def method_context(
 def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, NetworkPolicy]) -> None:
     """Leave out of ``info.keys`` the models whose episodes chose a network's checkpoint, for
     every method (the comparison stays paired), noting each in ``info.excluded``."""
-    if info.name == "meshes":
+    if info.name in PREPARED:
         return
     keep = []
     for key in info.keys:

@@ -1,6 +1,7 @@
 """Data the evaluation renders itself, through the dataset pipeline, cached by content.
 
-:func:`prepare_meshes`: a folder of meshes turned into a dataset. :func:`rendered_viewspaces`:
+:func:`prepare_meshes`: a folder of meshes (or a real source: YCB, the scans) turned into a
+dataset. :func:`rendered_viewspaces`:
 the views of a viewspace a dataset lacks (``protocol=hemisphere_30`` on the default dataset),
 rendered for its models with the settings it recorded.
 
@@ -46,8 +47,9 @@ def _mesh_files(folder: Path) -> list[Path]:
     )
 
 
-def identity(mesh_dir: Path, settings: PrepareSettings) -> dict:
-    """What determines a prepared dataset: the files of ``mesh_dir`` and the settings."""
+def identity(mesh_dir: Path, settings: PrepareSettings, source: str = "folder") -> dict:
+    """What determines a prepared dataset: the files of ``mesh_dir``, the source that lists them
+    and the settings."""
     folder = Path(mesh_dir).resolve()
     files = []
     for p in _mesh_files(folder):
@@ -64,17 +66,19 @@ def identity(mesh_dir: Path, settings: PrepareSettings) -> dict:
         "coverage_test": COVERAGE_TEST,
         "points_per_view": settings.points_per_view,
         "seed": settings.seed,
+        # Only for the named sources: the caches of mesh folders made before keep their hash.
+        **({"source": source} if source != "folder" else {}),
     }
 
 
-def prepared_dir(mesh_dir: Path, settings: PrepareSettings) -> Path:
+def prepared_dir(mesh_dir: Path, settings: PrepareSettings, source: str = "folder") -> Path:
     """``<settings.dir>/<16 hex digits of the identity's hash>``."""
-    text = json.dumps(identity(mesh_dir, settings), sort_keys=True)
+    text = json.dumps(identity(mesh_dir, settings, source), sort_keys=True)
     return Path(settings.dir) / hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def prepare_meshes(
-    mesh_dir: Path, settings: PrepareSettings, progress: bool = True
+    mesh_dir: Path, settings: PrepareSettings, progress: bool = True, source: str = "folder"
 ) -> tuple[Path, list[tuple[str, str]]]:
     """Render and score every mesh of ``mesh_dir``, or reuse the cached result.
 
@@ -82,19 +86,21 @@ def prepare_meshes(
         mesh_dir: folder of mesh files (searched recursively).
         settings: how to render and score.
         progress: show the generator's progress bar.
+        source: the dataset source that lists the meshes of ``mesh_dir`` (their keys and
+            categories): ``folder``, ``ycb`` or ``scans``.
 
     Returns:
         ``(folder, failures)``: the dataset folder (open it with ``nbv.dataset.open``) and
         ``(key, reason)`` of each mesh that could not be used (unreadable, empty render).
     """
-    out = prepared_dir(mesh_dir, settings)
+    out = prepared_dir(mesh_dir, settings, source)
     done = out / DONE_FILE
     if done.exists():
         return out, [tuple(f) for f in json.loads(done.read_text())["failures"]]
     summary = generate(
         GenerationSettings(
             out_dir=out,
-            source="folder",
+            source=source,
             root=str(mesh_dir),
             seed=settings.seed,
             intrinsics=settings.camera,
@@ -108,7 +114,7 @@ def prepare_meshes(
     if summary.complete == 0:
         reasons = "; ".join(f"{k}: {r}" for k, r in summary.failures) or "no mesh files"
         raise ValueError(f"mesh_dir={str(mesh_dir)!r}: no mesh could be prepared ({reasons})")
-    record = {"identity": identity(mesh_dir, settings), "failures": summary.failures}
+    record = {"identity": identity(mesh_dir, settings, source), "failures": summary.failures}
     done.write_text(json.dumps(record, indent=1))
     return out, [tuple(f) for f in summary.failures]
 

@@ -272,8 +272,8 @@ class RankingSettings:
             viewspace-conditioned networks (:data:`DEFAULT_METHODS`).
         out: the output folder: ``ranking.md``, ``ranking.json`` and the log ``ranking.log``.
         data_dir: a dataset folder made by ``make dataset``.
-        dataset: the models (one of ``nbv.eval``'s ``dataset``): ``unseen``, ``test`` or
-            ``meshes`` (with ``mesh_dir``).
+        dataset: the models (one of ``nbv.eval``'s ``dataset``): ``unseen``, ``test``,
+            ``meshes`` (with ``mesh_dir``), ``ycb`` or ``scans``.
         mesh_dir: a folder of mesh files (``dataset=meshes``); null = none.
         limit: at most this many models (spread over the categories); null = all.
         checkpoints: network method name -> its checkpoint (``checkpoints.vcnbv_map=<best.pt>``);

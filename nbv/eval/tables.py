@@ -147,8 +147,8 @@ def category_tables(records, datasets, viewspaces) -> list[str]:
             if not rs:
                 continue
             methods = order_methods(r.method for r in rs)
-            # A mesh folder has one category for all; its models are the interesting rows.
-            by_key = d == "meshes"
+            # A mesh folder has one category for all, the scans a few: their models are the rows.
+            by_key = d in ("meshes", "scans")
             group = sorted({r.key if by_key else r.category for r in rs}, key=str)
             cell: dict[tuple, list[float]] = defaultdict(list)
             for r in rs:
