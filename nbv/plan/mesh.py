@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nbv.assets.meshes import Mesh, load_mesh, normalise, sample_surface
+from nbv.assets.meshes import Mesh, MeshError, load_mesh, normalise, sample_surface
 from nbv.dataset.records import ModelData
 from nbv.dataset.views import view_data
 from nbv.geometry.hull import QhullFailure, hull_volume
@@ -27,6 +27,7 @@ from nbv.plan.method import GainRecorder, method_context, policy_rng
 from nbv.plan.result import VIEWSPACE, PlanResult
 from nbv.policies.episode import run_episode, stage_seconds
 from nbv.policies.registry import METHODS
+from nbv.render.job import RenderError
 from nbv.render.raycast import render_raycast
 from nbv.utils.seeding import named_rng
 
@@ -50,8 +51,15 @@ def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
     gt = sample_surface(normalised, settings.n_gt, rng)
     log.info("ray casting %d views of %s", len(poses), settings.mesh)
     depth = render_raycast(normalised.vertices, normalised.faces, poses, settings.camera)
-    view = view_data(depth, poses, settings.camera, gt, settings.eps, settings.points_per_view,
-                     rng)  # fmt: skip
+    try:
+        view = view_data(depth, poses, settings.camera, gt, settings.eps,
+                         settings.points_per_view, rng)  # fmt: skip
+    except RenderError as err:
+        # Parts far apart leave each below a pixel once the whole fits the views: no plan.
+        raise MeshError(
+            f"{settings.mesh}: {err} ({len(poses)} views of {settings.camera.width} x "
+            f"{settings.camera.height} pixels; are its parts far apart?); nothing to plan from"
+        ) from err
     try:
         gt_volume = hull_volume(gt)
     except QhullFailure:

@@ -139,10 +139,21 @@ def _write_ply(path: Path, write, what: str) -> None:
         tmp.unlink(missing_ok=True)
 
 
+#: A valid PLY file of a cloud without points (Open3D refuses to write one).
+EMPTY_CLOUD_PLY = (
+    b"ply\nformat binary_little_endian 1.0\nelement vertex 0\n"
+    b"property double x\nproperty double y\nproperty double z\nend_header\n"
+)
+
+
 def write_cloud(path: Path, points: np.ndarray) -> None:
-    """The accumulated cloud as a binary PLY (Open3D), world frame."""
+    """The accumulated cloud as a binary PLY (Open3D), world frame; a cloud without points is
+    written as a PLY with 0 vertices."""
     import open3d as o3d
 
+    if not len(points):
+        _write_ply(path, lambda file: Path(file).write_bytes(EMPTY_CLOUD_PLY) > 0, "cloud")
+        return
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, np.float64)))
     _write_ply(path, lambda file: o3d.io.write_point_cloud(file, cloud), "cloud")
 
@@ -187,6 +198,11 @@ def in_region(settings: PlanSettings, result: PlanResult, cloud: np.ndarray) -> 
     return distance <= SPHERE_MARGIN * result.frame.radius
 
 
+def name_of(settings: PlanSettings) -> str:
+    """The input's file or folder name, as the plan's title says it."""
+    return Path(settings.mesh or settings.captures or "views").name
+
+
 def write_outputs(settings: PlanSettings, result: PlanResult) -> list[Path]:
     """Write the plan's files into ``settings.out_dir``; returns their paths."""
     out = Path(settings.out_dir)
@@ -196,6 +212,11 @@ def write_outputs(settings: PlanSettings, result: PlanResult) -> list[Path]:
     cloud = frame.points_to_world(result.cloud)
     world = frame.poses_to_world(result.model.views[VIEWSPACE].poses)
     written = []
+    if not len(cloud):
+        # A flat object seen edge-on, or one too small for a pixel: the plan still stands.
+        empty = "the visited views saw nothing of the object: cloud.ply holds no points"
+        log.warning("%s: %s", name_of(settings), empty)
+        record["notes"] = [*record["notes"], empty]
     write_cloud(out / "cloud.ply", cloud)
     written.append(out / "cloud.ply")
     fused = result.reconstruction
@@ -206,7 +227,7 @@ def write_outputs(settings: PlanSettings, result: PlanResult) -> list[Path]:
     region, surroundings = cloud[inside], cloud[~inside]
     vertices, faces = hull_mesh(region)
     focus = (frame.center, frame.radius) if len(surroundings) else None
-    name = Path(settings.mesh or settings.captures or "views").name
+    name = name_of(settings)
     title = f"{settings.method} on {name}: next view {result.chosen[0]}, plan {result.chosen}"
     if settings.picture:
         from nbv.plan.picture import draw_plan
