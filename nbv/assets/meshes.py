@@ -149,7 +149,8 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
     """Read a triangle mesh from an OBJ, PLY, OFF, STL, GLB or glTF file.
 
     Scenes (several objects, glTF node trees) are concatenated into one mesh with their
-    transforms applied; polygons (quads, n-gons) are triangulated. Vertices are not merged, so an
+    transforms applied; polygons (quads, n-gons) are triangulated; a PLY file's triangle strips
+    (``element tristrips``) are decoded (:mod:`nbv.assets.ply`). Vertices are not merged, so an
     STL file keeps three vertices a triangle. Vertices no face uses are dropped. Materials and
     textures are not read.
 
