@@ -564,3 +564,21 @@ def test_the_network_overfits_a_few_models_with_the_default_loss(tiny_dataset, t
     assert settings.loss != "squared"
     squared = fit_check(samples, replace(settings, loss="squared"))
     assert squared[-1]["train_spearman"] < 0.75
+
+
+def test_a_training_run_is_a_learning_curve_point(tiny_dataset, tmp_path):
+    """nbv.eval.curve reads a `python -m train` run: the method its input and score play as, and
+    its training models (one per training category, less the held-out chair of fold 3)."""
+    from nbv.eval.curve import _learner
+
+    run(tiny_settings(tiny_dataset, tmp_path / "cov", epochs=1))
+    run(tiny_settings(tiny_dataset, tmp_path / "sph", epochs=1, input="signature"))
+    method, kw, row = _learner(tmp_path / "cov")
+    assert method == "pcnbv"
+    assert kw == {"checkpoints": {"pcnbv": str(tmp_path / "cov" / "best.pt")}}
+    assert (row["models"], row["epoch"]) == (7, 1)
+    chosen = read_csv(tmp_path / "cov" / "metrics.csv")[0]
+    assert row["validation"] == (
+        f"{float(chosen['val_auc']):.3f} ({float(chosen['val_spearman']):+.3f})"
+    )
+    assert _learner(tmp_path / "sph")[0] == "pcnbv_sph"

@@ -7,8 +7,10 @@ with one line on stderr and exit status 2 (:mod:`nbv.config.cli`).
 
 Each run folder is a ``python -m train.conditioned`` run (``max_models=N``; its ``best.pt`` plays
 as the viewspace-conditioned network method, ``vcnbv``, or ``vcnbv_map`` when it reads map
-features) or a ``python -m train.scorer`` run (its ``scorer.json`` plays as the learned-score
-method, ``ig_learned``); the folders of one curve are of one kind. Each
+features), a ``python -m train.scorer`` run (its ``scorer.json`` plays as the learned-score
+method, ``ig_learned``) or a ``python -m train`` run (its ``best.pt`` plays as ``pcnbv``,
+``pcnbv_sph`` or their ``_vig`` methods; its training models are counted in its dataset); the
+folders of one curve are of one kind. Each
 plays the unseen categories on both viewspaces (``nbv.eval``, the same episodes as ``make
 eval``), and the baselines (random, spread and the oracle) play them once, as horizontal lines.
 Written to ``out``: ``curve.md`` (a table: models, chosen epoch, the validation score the run
@@ -27,11 +29,13 @@ from typing import Any
 
 import numpy as np
 
+import nbv.dataset
 from nbv.config.cli import command
 from nbv.config.schema import PathsConfig
 from nbv.config.settings import Entry, setting
 from nbv.eval.config import VIEWSPACES, DisturbSettings, EvalSettings
 from nbv.eval.evaluate import run as run_eval
+from nbv.models.checkpoints import CHECKPOINT_FORMAT, load_checkpoint
 from nbv.models.view_conditioned import load_conditioned
 from nbv.planning.gain_scorer import load_scorer
 from nbv.policies.registry import BASELINES, METHODS, NETWORK_INPUTS, SCORED, SPREAD
@@ -86,6 +90,8 @@ def _learner(run: Path) -> tuple[str, dict, dict]:
             "models": int(info["train_models"]), "epoch": int(info["epoch"]),
             "validation": f"{info['val_captured']:.3f} (ig {info['val_captured_ig']:.3f})",
         }  # fmt: skip
+    if _format(run / "best.pt") == CHECKPOINT_FORMAT:
+        return _network_learner(run)
     net, extra = load_conditioned(run / "best.pt")
     chosen = extra["rows"][int(extra["epoch"])]
     plain, mapped = CONDITIONED
@@ -94,6 +100,36 @@ def _learner(run: Path) -> tuple[str, dict, dict]:
         "models": int(extra.get("train_models") or extra["settings"].get("max_models") or 32),
         "epoch": int(extra["epoch"]) + 1,
         "validation": f"{chosen['val_auc_original']:.3f} / {chosen['val_auc_permuted']:.3f}",
+    }  # fmt: skip
+
+
+def _format(path: Path) -> str | None:
+    """The ``format`` a checkpoint file records (None for anything else)."""
+    import torch
+
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # any unreadable file: the loaders name it and the reason
+        return None
+    return payload.get("format") if isinstance(payload, dict) else None
+
+
+def _network_learner(run: Path) -> tuple[str, dict, dict]:
+    """:func:`_learner` of a ``python -m train`` run: it plays as the registry's method of its
+    input and score (``pcnbv``, ``pcnbv_sph``, ``pcnbv_vig``, ``pcnbv_sph_vig``); its training
+    models are its dataset's train split less the held-out category."""
+    _, extra = load_checkpoint(run / "best.pt")
+    s = extra["settings"]
+    (method,) = (m for m, kind in NETWORK_INPUTS.items()
+                 if kind == extra["input"] and METHODS[m].score == s["score"])  # fmt: skip
+    ds = nbv.dataset.open(s["dataset"])
+    held_out = extra.get("held_out")
+    models = sum(ds.index[k][1] != held_out for k in ds.keys(split="train"))
+    chosen = extra["metrics"]
+    return method, {"checkpoints": {method: str(run / "best.pt")}}, {
+        "models": models, "epoch": int(extra["epoch"]) + 1,
+        "validation": f"{chosen['val_auc']:.3f} ({chosen['val_spearman']:+.3f})",
+        "validation_label": "val AUC (Spearman), original",
     }  # fmt: skip
 
 
@@ -154,8 +190,9 @@ def _write(out: Path, rows: list[dict], lines: dict[str, float]) -> None:
     import matplotlib.pyplot as plt
 
     method = rows[0]["method"]
-    validation = ("val AUC orig / perm" if METHODS[method].network_input is not None
-                  else "val share of the best gain")  # fmt: skip
+    validation = rows[0].get("validation_label") or (
+        "val AUC orig / perm" if METHODS[method].network_input is not None
+        else "val share of the best gain")  # fmt: skip
     table = md_table(
         ["training models", "epoch", validation, "unseen AUC orig / perm",
          "minus spread, original", "minus spread, permuted"],
@@ -188,8 +225,9 @@ class CurveSettings:
     """The runs of one learning curve and where it is written (``conf/curve.yaml``).
 
     Attributes:
-        runs: the run folders (one or more), all of ``python -m train.conditioned`` or all of
-            ``python -m train.scorer``, e.g. one per ``max_models``.
+        runs: the run folders (one or more), all of ``python -m train.conditioned``, all of
+            ``python -m train.scorer`` or all of ``python -m train`` of one model and score,
+            e.g. one per ``max_models`` or per dataset size.
         out: the output folder: ``curve.md``, ``curve.png``, the evaluations ``eval_*`` (a rerun
             reuses what they hold) and the log ``curve.log``.
         data_dir: a dataset folder made by ``make dataset``; its unseen categories are played.
