@@ -20,7 +20,7 @@ from hydra import compose, initialize_config_dir
 import nbv.dataset
 from nbv.dataset import show
 from nbv.dataset.config import ENTRY
-from nbv.dataset.generate import exit_status, generate
+from nbv.dataset.generate import exit_status, generate, nothing_made
 from nbv.dataset.generation import Renderer
 from nbv.dataset.samples import SampleSettings
 from nbv.dataset.schema import config_json
@@ -184,6 +184,9 @@ def test_nothing_produced_is_an_error_status(tmp_path):
     summary = generate(small_settings(tmp_path, root=str(folder)))
     assert summary.produced == 0 and len(summary.failures) == 2
     assert exit_status(summary) == 1
+    line = nothing_made(summary, shown=1)
+    assert line.startswith("shard-00000-of-00001.h5: none of its 2 models could be made (a: ")
+    assert line.endswith("; and 1 more)") and "\n" not in line
 
 
 @pytest.mark.parametrize(

@@ -476,3 +476,17 @@ def test_nbv_eval_prepares_the_good_file_and_refuses_a_folder_of_bad_ones(mixed,
     (bad / "garbage.glb").write_bytes((mixed / "garbage.glb").read_bytes())
     proc = run_cli("nbv.eval", f"mesh_dir={bad}", *cheap, cwd=tmp_path)
     assert_refused(proc, f"nbv.eval: mesh_dir='{bad}': no mesh could be prepared (garbage: {bad}")
+
+
+def test_nbv_dataset_refuses_a_folder_of_bad_files_in_one_line(mixed, tmp_path):
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    for name in ("garbage.glb", "nan.obj"):
+        (bad / name).write_bytes((mixed / name).read_bytes())
+    proc = run_cli("nbv.dataset", "source=folder", f"root={bad}", "camera=small", "n_gt=500",
+                   "viewspaces=[original]", "out_dir=data", "progress=false",
+                   cwd=tmp_path)  # fmt: skip
+    assert_refused(
+        proc,
+        f"nbv.dataset: shard-00000-of-00001.h5: none of its 2 models could be made (garbage: {bad}",
+    )

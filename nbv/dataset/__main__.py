@@ -2,9 +2,9 @@
 
 Settings: ``conf/dataset.yaml`` (declared by :class:`nbv.dataset.config.Settings`). On SLURM:
 ``python -m nbv.dataset -m hydra/launcher=slurm num_shards=4 shard=0,1,2,3`` (one array task per
-shard) or ``scripts/slurm_dataset.sbatch``. A refused setting, catalogue or viewspace ends with one
-line on stderr and exit status 2, and leaves no run folder behind (:mod:`nbv.config.cli`); a run
-that could make no model ends with status 1.
+shard) or ``scripts/slurm_dataset.sbatch``. A refused setting, catalogue or viewspace, and a shard
+of which no model could be made (every mesh unreadable, say), ends with one line on stderr and exit
+status 2 (:mod:`nbv.config.cli`).
 """
 
 import sys

@@ -47,7 +47,16 @@ from nbv.render.preflight import check_blender
 from nbv.utils.fields import ConfigError
 from nbv.utils.seeding import named_rng
 
-__all__ = ["Summary", "exit_status", "generate", "report", "run", "shard_name", "view_data"]
+__all__ = [
+    "Summary",
+    "exit_status",
+    "generate",
+    "nothing_made",
+    "report",
+    "run",
+    "shard_name",
+    "view_data",
+]
 
 log = logging.getLogger(__name__)
 
@@ -281,12 +290,18 @@ def generate(settings: GenerationSettings) -> Summary:
 def run(settings: GenerationSettings, sample_settings: SampleSettings | None) -> int:
     """Generate the shard, then its training samples; log the summary; return the exit status.
 
+    Raises:
+        ValueError: no model of the shard could be made (:func:`nothing_made` says why, in one
+            line: a folder of unreadable meshes is bad input, refused like a bad setting).
+
     numpy's BLAS runs one thread here and in the samples' workers (forked, they inherit it): the
     renderer processes or the other workers already keep every core busy, and an idle OpenBLAS
     thread spins (``sched_yield``) after each product, taking a core's share from them.
     """
     with threadpool_limits(limits=1, user_api="blas"):
         summary = generate(settings)
+        if exit_status(summary):
+            raise ValueError(nothing_made(summary))
         report(summary)
         if sample_settings is not None and summary.shard_file.exists() and summary.complete:
             if samples_up_to_date(summary.shard_file, sample_settings):
@@ -302,6 +317,15 @@ def run(settings: GenerationSettings, sample_settings: SampleSettings | None) ->
 def exit_status(summary: Summary) -> int:
     """0 when the shard holds a model (or had nothing to do); 1 when nothing could be made."""
     return 1 if summary.total > 0 and summary.complete == 0 else 0
+
+
+def nothing_made(summary: Summary, shown: int = 3) -> str:
+    """One line: none of the shard's models could be made, with the first ``shown`` reasons."""
+    reasons = "; ".join(f"{key}: {why}" for key, why in summary.failures[:shown])
+    more = len(summary.failures) - shown
+    tail = f"; and {more} more" if more > 0 else ""
+    name, total = summary.shard_file.name, summary.total
+    return f"{name}: none of its {total} models could be made ({reasons}{tail})"
 
 
 def report(summary: Summary) -> None:
