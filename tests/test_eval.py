@@ -730,3 +730,21 @@ def test_a_dataset_of_another_eps_is_refused_by_name(tiny, tmp_path):
     other = replace(settings, prepare=replace(settings.prepare, eps=0.00707))
     with pytest.raises(EvalDataError, match=r"eps=.*protocol\.eps=0\.00707"):
         evaluate(other)
+
+
+def test_a_run_in_this_process_takes_the_workers_thread_limits():
+    """workers=1 runs the models in the calling process, with the threads of a worker (one torch
+    and one BLAS thread by default), not the pools' defaults that oversubscribe the cores."""
+    code = (
+        "import torch, threadpoolctl\n"
+        "from nbv.eval.evaluate import _pool\n"
+        "with _pool(1, 1, 5) as pool:\n"
+        "    assert list(pool(abs, [-1, 2])) == [1, 2]\n"
+        "blas = [p['num_threads'] for p in threadpoolctl.threadpool_info()"
+        " if p['user_api'] == 'blas']\n"
+        "print(torch.get_num_threads(), blas)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    torch_threads, blas = out.stdout.split(" ", 1)
+    assert torch_threads == "1"
+    assert set(json.loads(blas)) <= {1}

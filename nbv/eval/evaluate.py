@@ -495,10 +495,13 @@ def evaluate(settings: EvalSettings) -> Evaluation:
 
 @contextlib.contextmanager
 def _pool(workers: int, threads: int, tasks: int):
-    """``map(fn, items)`` in order: in this process, or over ``workers`` spawned processes of
-    ``threads`` torch and BLAS threads each (spawned: forking a process that ran OpenMP is
-    unsafe)."""
+    """``map(fn, items)`` in order: in this process, or over ``workers`` spawned processes, with
+    ``threads`` torch and BLAS threads each either way (spawned: forking a process that ran
+    OpenMP is unsafe)."""
     if workers <= 1 or tasks <= 1:
+        # The workers' thread limits here too: with the default pools a run of workers=1 took
+        # 1-2 minutes a YCB model beside other jobs, its BLAS and torch threads oversubscribing.
+        _worker_start(threads)
         yield map
         return
     import multiprocessing
