@@ -748,3 +748,15 @@ def test_a_run_in_this_process_takes_the_workers_thread_limits():
     torch_threads, blas = out.stdout.split(" ", 1)
     assert torch_threads == "1"
     assert set(json.loads(blas)) <= {1}
+
+
+def test_a_flat_ground_truth_leaves_out_the_vig_oracle_only():
+    """VIG is undefined for a flat object: the method greedy by the true VIG cannot play it (it
+    stopped a whole run); every other method, VIG-led ones included, still plays it."""
+    from nbv.eval.evaluate import Job, playable_jobs
+
+    jobs = [Job(m, None, None, "original", 1, 0) for m in
+            ("random", "oracle", "oracle_vig", "pcnbv_sph_vig", "vig_hull_sco")]  # fmt: skip
+    assert playable_jobs(jobs, 0.0, "flat") == [j for j in jobs if j.method != "oracle_vig"]
+    assert playable_jobs(jobs, float("nan"), "flat") == playable_jobs(jobs, 0.0, "flat")
+    assert playable_jobs(jobs, 0.02, "solid") == jobs

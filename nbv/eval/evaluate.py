@@ -15,6 +15,7 @@ import contextlib
 import dataclasses
 import json
 import logging
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -329,6 +330,20 @@ class ModelResult(NamedTuple):
     gt_hull_volume: float
 
 
+def playable_jobs(jobs: list, gt_hull_volume: float, key: str) -> list:
+    """The jobs a model can play: those of a method greedy by the true VIG (``oracle_vig``) need
+    a ground truth with a hull volume, which a flat object lacks (its VIG is undefined); they
+    are left out for it, with a warning, as its VIG curves are left out of the VIG tables."""
+    if math.isfinite(gt_hull_volume) and gt_hull_volume > 0:
+        return list(jobs)
+    needs = {m for m in {j.method for j in jobs}
+             if METHODS[m].ground_truth and METHODS[m].score == "vig"}  # fmt: skip
+    if needs:
+        log.warning("%s: %s left out: the ground truth's hull has no volume, VIG is undefined",
+                    key, ", ".join(sorted(needs)))  # fmt: skip
+    return [j for j in jobs if j.method not in needs]
+
+
 def run_model(task: ModelTask) -> ModelResult:
     """Every job's episode on one model (in a worker process, or in this one), with its metrics
     (:mod:`nbv.eval.metrics`: the ground truth's KD-tree and each view's distances computed once
@@ -340,8 +355,9 @@ def run_model(task: ModelTask) -> ModelResult:
     settings, ds = task.settings, nbv.dataset.open(task.path)
     model = read_model(ds, task.rendered, task.key, settings.viewspaces)
     metrics = ModelMetrics(model, task.ctx.eps)
+    jobs = playable_jobs(task.jobs, model.gt_hull_volume, task.key)
     policies = []
-    for job in task.jobs:
+    for job in jobs:
         # Repeat 0 keeps the generator of a single run: one seed's numbers stay.
         names = (job.method, job.check or "", task.key, job.viewspace, job.start)
         rng = episode_rng(settings.seed, *names, *([job.repeat] if job.repeat else []))
@@ -349,22 +365,22 @@ def run_model(task: ModelTask) -> ModelResult:
         if job.kind is not None:
             policy = disturbed(job.kind, policy, rng, settings.disturb.radius, job.sigma)
         policies.append(policy)
-    episodes: list[Episode | None] = [None] * len(task.jobs)
+    episodes: list[Episode | None] = [None] * len(jobs)
     if settings.batched:
         by_method: dict[str, list[int]] = {}
-        for i, job in enumerate(task.jobs):
+        for i, job in enumerate(jobs):
             by_method.setdefault(job.method, []).append(i)
         for indices in by_method.values():
-            specs = [EpisodeSpec(task.jobs[i].viewspace, task.jobs[i].start, policies[i])
+            specs = [EpisodeSpec(jobs[i].viewspace, jobs[i].start, policies[i])
                      for i in indices]  # fmt: skip
             for i, episode in zip(indices, run_lockstep(model, specs, settings.n_views),
                                   strict=True):  # fmt: skip
                 episodes[i] = episode
     else:
         episodes = [run_episode(model, job.viewspace, job.start, policy, settings.n_views)
-                    for job, policy in zip(task.jobs, policies, strict=True)]  # fmt: skip
+                    for job, policy in zip(jobs, policies, strict=True)]  # fmt: skip
     records = []
-    for job, policy, episode in zip(task.jobs, policies, episodes, strict=True):
+    for job, policy, episode in zip(jobs, policies, episodes, strict=True):
         record = episode_record(model, job.viewspace, job.start, job.method, policy,
                                 task.dataset, episode, job.check, job.repeat)  # fmt: skip
         record.metrics = metrics.episode(job.viewspace, record.views, record.coverage)
