@@ -12,7 +12,7 @@ import h5py
 import numpy as np
 import pytest
 import trimesh
-from datagen import SMALL_CAMERA
+from datagen import small_settings
 
 from nbv.assets.catalogues import CatalogueError, catalogue, scans_catalogue, ycb_catalogue
 from nbv.assets.meshes import load_mesh, normalise
@@ -25,7 +25,6 @@ from nbv.assets.real_objects import (
     ycb_group,
 )
 from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Renderer
 from nbv.dataset.sources import list_models
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -145,16 +144,8 @@ def test_a_scans_dataset_records_its_licence(tmp_path):
     root.mkdir()
     for scan in SCANS:  # the catalogue needs every file; one model is rendered
         shutil.copy(SCANS_ROOT / scan.file, root / scan.file)
-    settings = GenerationSettings(
-        out_dir=tmp_path / "out",
-        source="scans",
-        root=str(root),
-        models=("cow",),
-        intrinsics=SMALL_CAMERA,
-        n_gt=500,
-        points_per_view=20,
-        renderer=Renderer(backend="raycast"),
-        progress=False,
+    settings = small_settings(
+        tmp_path, source="scans", root=str(root), models=("cow",), n_gt=500, points_per_view=20
     )
     summary = generate(settings)
     assert summary.complete == 1
