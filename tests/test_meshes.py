@@ -174,7 +174,7 @@ BAD_FILES = {
     "garbage.off": (b"hello world\n", "cannot read"),
     "garbage.glb": (b"hello world\n", "cannot read"),
     "garbage.obj": (b"hello world\n", "no faces"),
-    "empty.obj": (b"", "no faces"),
+    "empty.obj": (b"", "the file is empty"),
     "points.ply": (ply_text(TET_V, []).encode(), "no faces"),
     "nan.obj": (obj_text([["nan", 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]]).encode(), "NaN"),
     "inf.obj": (obj_text([[0, 0, 0], [1, "inf", 0], [0, 1, 0]], [[0, 1, 2]]).encode(), "NaN"),

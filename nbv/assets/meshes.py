@@ -174,6 +174,11 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
     if not path.is_file():
         reason = "is a directory, not a file" if path.is_dir() else "no such file"
         raise MeshError(f"{path}: cannot read mesh: {reason}")
+    size = path.stat().st_size
+    if size == 0:
+        raise MeshError(f"{path}: cannot read mesh: the file is empty (0 bytes)")
+    if suffix == ".stl":
+        _check_stl_size(path, size)
     try:
         if suffix == ".ply" and has_strips(path):
             # trimesh reads no strips: Stanford's scans would have no faces.
@@ -188,9 +193,46 @@ def load_mesh(path: str | os.PathLike) -> Mesh:
     except Exception as err:  # any reader failure means a bad file, whatever the reader raises
         detail = f"{type(err).__name__}: {err}" if str(err) else type(err).__name__
         raise MeshError(f"{path}: cannot read mesh ({detail})") from err
+    if len(faces) == 0 and vertices.ndim == 2:
+        raise MeshError(
+            f"{path}: mesh has no faces ({len(vertices)} vertices read): the file holds no "
+            f"triangles that a {suffix[1:].upper()} reader understands"
+        )
     validate_mesh(vertices, faces, str(path))
     vertices, faces = _drop_unused_vertices(vertices, faces)
     return Mesh(vertices, faces, str(path))
+
+
+#: A binary STL: an 80-byte header, a uint32 triangle count, then 50 bytes a triangle.
+_STL_HEADER_BYTES = 84
+_STL_TRIANGLE_BYTES = 50
+
+
+def _check_stl_size(path: Path, size: int) -> None:
+    """Refuse a binary STL whose size disagrees with its triangle count (cut short, or not an
+    STL at all), which trimesh would read as a mesh of no triangles. ASCII STL passes.
+
+    Raises:
+        MeshError: naming the file, the count its header promises and the bytes it has.
+    """
+    with open(path, "rb") as handle:
+        head = handle.read(_STL_HEADER_BYTES)
+    if size >= _STL_HEADER_BYTES:
+        count = int(np.frombuffer(head[80:84], dtype="<u4")[0])
+        if size == _STL_HEADER_BYTES + _STL_TRIANGLE_BYTES * count:
+            return
+    if head.lstrip().startswith(b"solid"):
+        return  # ASCII STL (a binary one may start with "solid" too, but its size matched)
+    if size < _STL_HEADER_BYTES:
+        raise MeshError(
+            f"{path}: cannot read mesh: {size} bytes is too short for a binary STL "
+            f"(its header alone is {_STL_HEADER_BYTES} bytes) and it is not ASCII STL"
+        )
+    need = _STL_HEADER_BYTES + _STL_TRIANGLE_BYTES * count
+    raise MeshError(
+        f"{path}: cannot read mesh: its binary STL header promises {count} triangles "
+        f"({need} bytes) but the file has {size} bytes; it is cut short or not an STL file"
+    )
 
 
 def normalise(mesh: Mesh) -> tuple[Mesh, np.ndarray, float]:
