@@ -750,6 +750,43 @@ def test_a_run_in_this_process_takes_the_workers_thread_limits():
     assert set(json.loads(blas)) <= {1}
 
 
+_FINISH_ORDER_SCRIPT = """
+import os, sys, time
+from nbv.eval.evaluate import _pool
+
+FLAG = sys.argv[1]
+
+def slow_or_quick(item):
+    # Item 0 waits for the flag the caller writes once it has item 1's result; in-order
+    # results would never deliver item 1 first, and item 0 gives up after 120 s.
+    if item == 0:
+        deadline = time.monotonic() + 120
+        while not os.path.exists(FLAG):
+            if time.monotonic() > deadline:
+                return "gave up"
+            time.sleep(0.05)
+    return item
+
+if __name__ == "__main__":
+    got = []
+    with _pool(2, 1, 2) as pool:
+        for result in pool(slow_or_quick, [0, 1]):
+            got.append(result)
+            open(FLAG, "w").close()
+    print(got)
+"""
+
+
+def test_the_workers_give_each_model_as_it_finishes(tmp_path):
+    """A slow model does not hold back the ones that finish after it: the evaluator logs each as
+    it ends, so a run killed during the slow one keeps them."""
+    script = tmp_path / "order.py"
+    script.write_text(_FINISH_ORDER_SCRIPT)
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "flag")],
+                         capture_output=True, text=True, check=True, timeout=300)  # fmt: skip
+    assert out.stdout.strip() == "[1, 0]"
+
+
 def test_a_flat_ground_truth_leaves_out_the_vig_oracle_only():
     """VIG is undefined for a flat object: the method greedy by the true VIG cannot play it (it
     stopped a whole run); every other method, VIG-led ones included, still plays it."""

@@ -476,10 +476,12 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     t0 = time.perf_counter()
     results: dict[tuple[str, str], ModelResult] = {}
     with _pool(worker_count(settings), settings.threads or 1, len(tasks)) as pool:
-        for result in pool(run_model, tasks):
+        for n, result in enumerate(pool(run_model, tasks), 1):
             episodes.append(result.dataset, result.key, result.records)
             results[(result.dataset, result.key)] = result
             bar.update(len(result.records))
+            log.info("%s/%s done (%d of %d models, %.0f s so far)", result.dataset, result.key,
+                     n, len(tasks), time.perf_counter() - t0)  # fmt: skip
     bar.close()
     seconds = time.perf_counter() - t0
     records: list[EpisodeRecord] = []
@@ -511,9 +513,12 @@ def evaluate(settings: EvalSettings) -> Evaluation:
 
 @contextlib.contextmanager
 def _pool(workers: int, threads: int, tasks: int):
-    """``map(fn, items)`` in order: in this process, or over ``workers`` spawned processes, with
-    ``threads`` torch and BLAS threads each either way (spawned: forking a process that ran
-    OpenMP is unsafe)."""
+    """``map(fn, items)`` with the results in the order they finish: in this process (the items'
+    order), or over ``workers`` spawned processes, with ``threads`` torch and BLAS threads each
+    either way (spawned: forking a process that ran OpenMP is unsafe).
+
+    Finish order, not the items' order: the caller logs each model as it ends, so that a run
+    killed while one slow model is still running keeps every model that finished after it."""
     if workers <= 1 or tasks <= 1:
         # The workers' thread limits here too: with the default pools a run of workers=1 took
         # 1-2 minutes a YCB model beside other jobs, its BLAS and torch threads oversubscribing.
@@ -521,13 +526,17 @@ def _pool(workers: int, threads: int, tasks: int):
         yield map
         return
     import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures import ProcessPoolExecutor, as_completed
 
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(
         min(workers, tasks), mp_context=context, initializer=_worker_start, initargs=(threads,)
     ) as executor:
-        yield executor.map
+
+        def finished(fn, items):
+            return (f.result() for f in as_completed([executor.submit(fn, i) for i in items]))
+
+        yield finished
 
 
 def run(settings: EvalSettings) -> Path:
