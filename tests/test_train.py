@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import torch
 from datagen import TINY_NET, make_train_dataset
+from test_policies import make_tiny_dataset
 
 import nbv.dataset
 from nbv.dataset.samples import SampleSet, SampleSettings, load_samples, model_samples
@@ -582,3 +583,17 @@ def test_a_training_run_is_a_learning_curve_point(tiny_dataset, tmp_path):
         f"{float(chosen['val_auc']):.3f} ({float(chosen['val_spearman']):+.3f})"
     )
     assert _learner(tmp_path / "sph")[0] == "pcnbv_sph"
+
+
+def test_a_training_run_plays_its_learning_curve(tiny_dataset, tmp_path):
+    """nbv.eval.curve end to end on a `python -m train` run: the run's own checkpoint plays the
+    unseen models (it used to be refused: the run's checkpoints were passed twice)."""
+    from nbv.eval.curve import curve
+
+    run(tiny_settings(tiny_dataset, tmp_path / "cov", epochs=1))
+    unseen = make_tiny_dataset(tmp_path / "unseen", models=1)
+    (row,) = curve([tmp_path / "cov"], tmp_path / "curve", unseen)
+    assert (row["method"], row["models"], row["epoch"]) == ("pcnbv", 7, 1)
+    played = json.loads((tmp_path / "curve" / "eval_cov" / "results.json").read_text())
+    assert played["settings"]["checkpoints"]["pcnbv"] == str(tmp_path / "cov" / "best.pt")
+    assert "| 7 | 1 |" in (tmp_path / "curve" / "curve.md").read_text()

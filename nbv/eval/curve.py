@@ -69,10 +69,13 @@ def _auc_by_episode(episodes: list[dict], method: str, viewspace: str) -> dict[t
 
 def _evaluate(
     out: Path, name: str, methods: tuple[str, ...], data_dir: Path,
-    checkpoints: Mapping[str, str], **kw: Any,
+    checkpoints: Mapping[str, str], extra: Mapping[str, Any] | None = None,
 ) -> Path:  # fmt: skip
+    """Run (or resume) the evaluation ``eval_<name>`` of ``methods``; ``extra`` holds further
+    :class:`EvalSettings` (a learner's, :func:`_learner`), whose ``checkpoints`` replace
+    ``checkpoints``."""
     folder = out / f"eval_{name}"
-    kw = {"checkpoints": dict(checkpoints), **kw}  # a conditioned run's own replaces them
+    kw = {"checkpoints": dict(checkpoints), **(extra or {})}
     settings = EvalSettings(run=folder.name, out_root=out, methods=methods, data_dir=data_dir,
                             disturb=DisturbSettings(checks=()), plots=False, progress=False,
                             **kw)  # fmt: skip
@@ -166,7 +169,7 @@ def curve(
     base = _episodes(_evaluate(out, "baselines", BASELINES, data_dir, checkpoints))
     rows = []
     for run, (method, kw, start) in zip(runs, trained, strict=True):
-        episodes = _episodes(_evaluate(out, run.name, (method,), data_dir, checkpoints, **kw))
+        episodes = _episodes(_evaluate(out, run.name, (method,), data_dir, checkpoints, kw))
         row = {"run": str(run), "method": method, **start}
         for vs in VIEWSPACES:
             net = _auc_by_episode(episodes, method, vs)
