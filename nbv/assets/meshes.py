@@ -217,18 +217,19 @@ def _check_stl_size(path: Path, size: int) -> None:
     """
     with open(path, "rb") as handle:
         head = handle.read(_STL_HEADER_BYTES)
-    if size >= _STL_HEADER_BYTES:
-        count = int(np.frombuffer(head[80:84], dtype="<u4")[0])
-        if size == _STL_HEADER_BYTES + _STL_TRIANGLE_BYTES * count:
-            return
-    if head.lstrip().startswith(b"solid"):
-        return  # ASCII STL (a binary one may start with "solid" too, but its size matched)
+    # A binary STL may start with "solid" too: the size decides first, then the ASCII keyword.
+    ascii_stl = head.lstrip().startswith(b"solid")
     if size < _STL_HEADER_BYTES:
+        if ascii_stl:
+            return
         raise MeshError(
             f"{path}: cannot read mesh: {size} bytes is too short for a binary STL "
             f"(its header alone is {_STL_HEADER_BYTES} bytes) and it is not ASCII STL"
         )
+    count = int(np.frombuffer(head[80:84], dtype="<u4")[0])
     need = _STL_HEADER_BYTES + _STL_TRIANGLE_BYTES * count
+    if size == need or ascii_stl:
+        return
     raise MeshError(
         f"{path}: cannot read mesh: its binary STL header promises {count} triangles "
         f"({need} bytes) but the file has {size} bytes; it is cut short or not an STL file"
