@@ -27,8 +27,18 @@ PAPER = {
 }
 
 
-def _verdict(ok: bool | None) -> str:
-    return "n/a (not measured)" if ok is None else ("**holds**" if ok else "**does not hold**")
+def _verdict(ok: bool | None, why: str = "") -> str:
+    """The verdict cell; a claim that fails says why in one line, with the number."""
+    if ok is None:
+        return "n/a (not measured)"
+    if ok:
+        return "**holds**"
+    return "**does not hold**" + (f": {why}" if why else "")
+
+
+def _why(failing: dict[str, Interval], where: str) -> str:
+    """One reason per failing interval: "<label>: <interval> is not <where> 0", joined by "; "."""
+    return "; ".join(f"{m}: {d.text(3)} is not {where} 0" for m, d in failing.items())
 
 
 class _Episodes:
@@ -62,16 +72,17 @@ class _Episodes:
         return bootstrap_mean(x, [k for k, _ in shared], self.seed)
 
 
-def _against(ep: _Episodes, base: str) -> dict[int, tuple[str, bool | None]]:
-    """(measured text, verdict) of claims 1 and 2 with ``base`` as the baseline."""
-    out: dict[int, tuple[str, bool | None]] = {}
+def _against(ep: _Episodes, base: str) -> dict[int, tuple[str, str]]:
+    """(measured text, verdict cell) of claims 1 and 2 with ``base`` as the baseline."""
+    out: dict[int, tuple[str, str]] = {}
     if not ep.has("original", base):
-        return {1: ("", None), 2: ("", None)}
+        return {1: ("", _verdict(None)), 2: ("", _verdict(None))}
     beat = [m for m in (PCNBV.name, PCNBV_SPH.name, HULL_SCO.name) if ep.has("original", m)]
     diffs = {m: ep.diff("original", base, m) for m in beat}
+    below = {f"{m} - {base}": d for m, d in diffs.items() if not d.above_zero}
     out[1] = (
         "; ".join(f"{m} - {base} {d.text(3)}" for m, d in diffs.items()),
-        all(d.above_zero for d in diffs.values()) if diffs else None,
+        _verdict(not below if diffs else None, _why(below, "above")),
     )
     nets = [m for m in (PCNBV.name, PCNBV_SPH.name) if ep.has("permuted", m)]
     degrade = {m: ep.advantage_kept(m, base, DEGRADE_FRACTION) for m in nets}
@@ -79,15 +90,21 @@ def _against(ep: _Episodes, base: str) -> dict[int, tuple[str, bool | None]]:
     if nets and hold is not None and all(d is not None for d in degrade.values()):
         net_ok = all(d.below_zero for d in degrade.values())
         parts = [f"{m}: {d.text(3)}" for m, d in degrade.items()]
+        reasons = [
+            _why({f"{m}'s kept advantage": d for m, d in degrade.items() if not d.below_zero},
+                 "below"),
+            _why({} if hold.above_zero else {f"{HULL_SCO.name}'s kept advantage": hold}, "above"),
+        ]  # fmt: skip
+        why = "; ".join(r for r in reasons if r)
         out[2] = (
             f"networks' kept advantage over {base} (permuted - {DEGRADE_FRACTION} x original, "
             f"must lie below 0): {'; '.join(parts)}; planner's (permuted - {HOLD_FRACTION} x "
             f"original, must lie above 0): {hold.text(3)}; networks degrade: "
             f"{'yes' if net_ok else 'no'}, planner holds: {'yes' if hold.above_zero else 'no'}",
-            net_ok and hold.above_zero,
+            _verdict(net_ok and hold.above_zero, why),
         )
     else:
-        out[2] = ("", None)
+        out[2] = ("", _verdict(None))
     return out
 
 
@@ -97,8 +114,7 @@ def _dataset_claims(records: list, d: str, times: dict, seed: int) -> list[str]:
     vs_random, vs_spread = _against(ep, RANDOM.name), _against(ep, SPREAD.name)
     rows = []
     for k in (1, 2):
-        rows.append([str(k), PAPER[k], vs_random[k][0], _verdict(vs_random[k][1]),
-                     vs_spread[k][0], _verdict(vs_spread[k][1])])  # fmt: skip
+        rows.append([str(k), PAPER[k], *vs_random[k], *vs_spread[k]])
 
     if ep.has("original", PCNBV.name) and ep.has("original", PCNBV_SPH.name):
         diff = ep.diff("original", PCNBV.name, PCNBV_SPH.name)
@@ -112,22 +128,28 @@ def _dataset_claims(records: list, d: str, times: dict, seed: int) -> list[str]:
             for m in (PCNBV_SPH.name, PCNBV.name)
             if ep.has("original", SPREAD.name)
         ]
-        rows.append(["3", PAPER[3], text, _verdict(close and faster),
+        why = "; ".join(
+            ([f"pcnbv_sph - pcnbv {diff.text(3)} leaves +-{CLOSE_AUC}"] if not close else [])
+            + ([f"{t_s:.3f} s is not below pcnbv's {t_p:.3f} s"] if not faster else [])
+        )
+        rows.append(["3", PAPER[3], text, _verdict(close and faster, why),
                      "; ".join(spread) or "", "n/a (compares two networks)"])  # fmt: skip
     else:
         rows.append(["3", PAPER[3], "", _verdict(None), "", _verdict(None)])
 
-    parts, oks = [], []
+    parts, failing = [], {}
     for m in (PCNBV.name, PCNBV_SPH.name):
         if ep.has("original", m, "permuted_state") and ep.has("original", m, "random_cloud"):
             diff = paired_from_means(
                 ep.means, (d, "original", m, "random_cloud"), (d, "original", m, "permuted_state"),
                 seed,
             )  # fmt: skip
-            oks.append(diff.interval.below_zero)
+            if not diff.interval.below_zero:
+                failing[m] = diff.interval
             parts.append(f"{m}: permuted state - random cloud {diff.interval.text(3)}")
     text = "; ".join(parts) + " (must lie below 0)" if parts else ""
-    rows.append(["4", PAPER[4], text, _verdict(all(oks) if oks else None), "",
+    rows.append(["4", PAPER[4], text, _verdict(not failing if parts else None,
+                                               _why(failing, "below")), "",
                  "n/a (both disturb the network's own inputs)"])  # fmt: skip
     return md_table(
         ["#", "the paper's claim", "measured (vs random)", "verdict", "measured (vs spread)",
