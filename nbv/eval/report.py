@@ -256,11 +256,6 @@ def noise_table(changes: list[dict], sigmas) -> list[str]:
     ]
 
 
-def report_markdown(evaluation) -> str:
-    """The text of ``report.md``: :func:`report_body` and the plots found in the run folder."""
-    return report_body(evaluation) + plots_section(Path(evaluation.settings.out_dir))
-
-
 def report_body(evaluation) -> str:
     """The text of ``report.md`` but its plots (the costly part: every table)."""
     s = evaluation.settings
