@@ -7,7 +7,8 @@ import logging
 
 import numpy as np
 import pytest
-from test_policies import VOLUMETRIC, make_tiny_dataset, save_tiny_checkpoint
+from datagen import VOLUMETRIC, make_tiny_dataset
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.assets.meshes import Mesh, normalise

@@ -85,7 +85,7 @@ def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy(kind)
 
 def test_network_rows_are_well_formed_on_tiny_networks(tmp_path):
     """Every network row exists with positive times and its floor or slowdown (not its speed)."""
-    from test_policies import save_tiny_checkpoint
+    from tiny_nets import save_tiny_checkpoint
 
     from nbv.bench.network import LOAD_TARGET, network_rows
 
@@ -232,7 +232,7 @@ def test_training_step_is_one_adam_step_on_the_squared_error():
     import copy
 
     import torch
-    from test_policies import TINY_NET
+    from tiny_nets import TINY_NET
 
     from nbv.bench.training import random_batch, training_step
     from nbv.models.config import PCNBVConfig
@@ -261,7 +261,7 @@ def test_training_step_is_one_adam_step_on_the_squared_error():
 )
 def test_training_rows_are_well_formed_on_tiny_networks(tmp_path, precision, kind):
     """A training row per network with positive rates and its floor (not its speed)."""
-    from test_policies import TINY_NET, save_tiny_checkpoint
+    from tiny_nets import TINY_NET, save_tiny_checkpoint
 
     from nbv.bench.floor import pcnbv_flops
     from nbv.bench.training import training_rows

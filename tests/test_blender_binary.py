@@ -9,7 +9,6 @@ The sbatch script with ``BLENDER=`` is tested in ``tests/test_dataset_slurm.py``
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
@@ -17,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import _in_ci
+from needs import require_binary
 from scipy.spatial import cKDTree
 
 from nbv.assets.meshes import Mesh, load_mesh, normalise, sample_surface
@@ -35,23 +34,12 @@ from nbv.render.raycast import render_raycast
 pytestmark = pytest.mark.blender
 
 REPO = Path(__file__).resolve().parents[1]
-BINARY = os.environ.get("NBV_TEST_BLENDER", "/usr/bin/blender")
 #: The development meshes beside the checkout (CI has a copy of shared/ beside its clone).
 SHARED_MESHES = REPO.parent / "shared" / "meshes"
 #: The dataset's camera, and four views of the original viewspace: the pole, 30 degrees up, the
 #: equator, 30 degrees down.
 CAMERA = Intrinsics.centred()
 VIEWS = [0, 9, 20, 30]
-
-
-def require_binary() -> str:
-    """The Blender binary under test; fails in CI when it is missing, skips elsewhere."""
-    if os.access(BINARY, os.X_OK):
-        return BINARY
-    message = f"no Blender binary at {BINARY}; install it with `bash scripts/ensure_blender.sh`"
-    if _in_ci():
-        pytest.fail(message + " (.ci/run should have)", pytrace=False)
-    pytest.skip(message)
 
 
 @pytest.fixture(scope="module")

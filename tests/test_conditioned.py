@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 from datagen import make_train_dataset
-from test_policies import save_tiny_checkpoint
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.geometry.scores import coverage_gains

@@ -13,8 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from datagen import SMALL_CAMERA, write_meshes
-from test_policies import make_tiny_dataset, save_tiny_checkpoint
+from datagen import SMALL_CAMERA, make_tiny_dataset, write_meshes
+from evalgen import STARTS, tiny_settings
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.eval.config import (
@@ -48,7 +49,6 @@ from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     CHECKS,
     DEFAULT_METHODS,
-    NETWORK_INPUTS,
     PLANNERS,
     SHIPPED_SCORER,
     MethodContext,
@@ -58,7 +58,6 @@ from nbv.policies.registry import METHODS as METHODS_BY_NAME
 from nbv.policies.volumetric import InformationGainPolicy
 
 ROOT = Path(__file__).resolve().parents[1]
-STARTS = (1, 24)
 
 
 @pytest.fixture(scope="module")
@@ -73,25 +72,6 @@ def tiny(tmp_path_factory) -> dict[str, Path]:
         "vcnbv": save_tiny_checkpoint(tmp / "vcnbv.pt", "directions"),
         "vcnbv_map": save_tiny_checkpoint(tmp / "vcnbv_map.pt", "directions_map"),
     }
-
-
-def tiny_settings(
-    tiny: dict[str, Path], out: Path, checks=CHECKS, disturb_start_views=(24,), **kw
-) -> EvalSettings:
-    """Settings of the tiny dataset written to ``out`` (the disturbance checks and their start
-    views given flat, as keywords)."""
-    base = dict(
-        run=out.name,
-        out_root=out.parent,
-        data_dir=tiny["data"],
-        start_views=STARTS,
-        disturb=DisturbSettings(checks=checks, start_views=disturb_start_views),
-        checkpoints={name: str(tiny[name]) for name in NETWORK_INPUTS},
-        hull=PlannerSettings(n_samp=2048),
-        progress=False,
-    )
-    base.update(kw)
-    return EvalSettings(**base)
 
 
 @pytest.fixture(scope="module")

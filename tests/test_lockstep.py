@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_eval import tiny_settings
-from test_policies import make_tiny_dataset, save_tiny_checkpoint
+from datagen import make_tiny_dataset
+from evalgen import tiny_settings
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.assets.weights import shipped_weights

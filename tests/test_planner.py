@@ -13,15 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_plan_captures import (
-    CAMERA,
-    EPS,
-    START,
-    depth_image,
-    episode_views,
-    model,  # noqa: F401  (the fixture: one synthetic dataset model)
-    write_folder,
-)
+from capturegen import CAMERA, EPS, START, capture_model, depth_image, episode_views, write_folder
 
 from nbv.assets.synthetic.catalogue import make_model
 from nbv.config.schema import ConfigError
@@ -41,12 +33,17 @@ TABLE_CAMERA = Intrinsics.centred(320, 240, 238.0)
 HEMISPHERE = {"kind": "hemisphere", "n": 40, "up": "z", "radius": 0.45}
 
 
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    return capture_model(tmp_path_factory.mktemp("dataset"))
+
+
 def dataset_planner(method: str, **kw) -> Planner:
     return Planner(method=method, camera=CAMERA, eps=EPS, points_per_view=0, n_views=10,
                    **UNIT, **kw)  # fmt: skip
 
 
-def add_dataset_view(planner: Planner, model, v: int, kind: str = "points") -> None:  # noqa: F811
+def add_dataset_view(planner: Planner, model, v: int, kind: str = "points") -> None:
     """View ``v`` of the dataset model, as its stored points or their sparse depth image (a
     rendered view: its background is free)."""
     record = model.views["original"]
@@ -59,7 +56,7 @@ def add_dataset_view(planner: Planner, model, v: int, kind: str = "points") -> N
 
 @pytest.mark.parametrize("method", ["ig", "ig_learned", "vcnbv_map"])
 @pytest.mark.parametrize("kind", ["points", "depth"])
-def test_a_robot_loop_takes_the_views_of_the_evaluators_episode(model, method, kind):  # noqa: F811
+def test_a_robot_loop_takes_the_views_of_the_evaluators_episode(model, method, kind):
     views = episode_views(model, method)
     planner = dataset_planner(method)
     add_dataset_view(planner, model, START, kind)
@@ -70,7 +67,7 @@ def test_a_robot_loop_takes_the_views_of_the_evaluators_episode(model, method, k
     assert planner.result.visited == views[:-1]
 
 
-def test_a_one_shot_plan_is_the_episodes(model):  # noqa: F811
+def test_a_one_shot_plan_is_the_episodes(model):
     views = episode_views(model, "hull_sco")
     planner = dataset_planner("hull_sco")
     add_dataset_view(planner, model, START)
@@ -85,10 +82,10 @@ def test_a_one_shot_plan_is_the_episodes(model):  # noqa: F811
 
 @pytest.mark.parametrize(("method", "decisions"), [("ig", 4), ("ig_learned", 4), ("hull_sco", 1)])
 def test_the_planner_decides_as_the_command_on_the_same_captures(
-    model,  # noqa: F811
+    model,
     tmp_path,
     method,
-    decisions,  # noqa: F811
+    decisions,
 ):
     """At every decision for the methods whose decision reads only the views; a one-shot
     planner's later plans draw their hull samples on from the first's generator (the command's
@@ -107,7 +104,7 @@ def test_the_planner_decides_as_the_command_on_the_same_captures(
         assert mine.gains == command.gains
 
 
-def test_the_returned_pose_is_the_candidates_in_both_axes(model):  # noqa: F811
+def test_the_returned_pose_is_the_candidates_in_both_axes(model):
     planner = dataset_planner("ig")
     add_dataset_view(planner, model, START)
     step = planner.next_view()
@@ -120,7 +117,7 @@ def test_the_returned_pose_is_the_candidates_in_both_axes(model):  # noqa: F811
     assert step.gain_unit == "information gain (unobserved voxels)"
 
 
-def test_a_depth_image_and_its_points_are_the_same_view(model):  # noqa: F811
+def test_a_depth_image_and_its_points_are_the_same_view(model):
     """A depth view declared free and the same pixels as points declared free: the same points
     (to the float32 rounding of the stored ones), the same map (each block without a stored
     point is a miss either way) and the same choices."""

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from datagen import SMALL_CAMERA
-from test_policies import make_tiny_dataset, save_tiny_checkpoint
+from datagen import SMALL_CAMERA, make_tiny_dataset
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.dataset.generate import generate

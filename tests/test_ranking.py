@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_policies import make_tiny_dataset, save_tiny_checkpoint
+from datagen import make_tiny_dataset
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.eval.config import EvalSettings

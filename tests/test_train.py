@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from datagen import TINY_NET, make_train_dataset
-from test_policies import make_tiny_dataset
+from datagen import make_tiny_dataset, make_train_dataset
+from tiny_nets import TINY_NET
 
 import nbv.dataset
 from nbv.dataset.samples import SampleSet, SampleSettings, load_samples, model_samples
