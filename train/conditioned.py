@@ -64,6 +64,7 @@ from nbv.planning.view_features import FEATURES, unvisited_features
 from nbv.policies.conditioned_network import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.utils.fields import at_least, between, one_of, positive
 from nbv.utils.selection import masked_argmax
 from train.losses import LOSSES, batch_loss
 from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
@@ -78,11 +79,6 @@ VIEWSPACES = ("original", "permuted")
 #: ``net``: the widths of :class:`ConditionedConfig` (each null: its default); the number of map
 #: features follows ``map_features``.
 NetFields = schema_of(ConditionedConfig, "NetFields", optional=True, exclude=("map_features",))
-
-
-def _at_least(default: int, low: int, allowed: str | None = None) -> Any:
-    """An integer field of at least ``low``."""
-    return setting(default, check=lambda v: v >= low, allowed=allowed or f"an integer >= {low}")
 
 
 def _widths(net: Mapping[str, Any]) -> dict[str, Any]:
@@ -135,20 +131,18 @@ class ConditionedSettings:
     dataset: Path
     out_dir: Path
     seed: int = 0
-    epochs: int = _at_least(6, 1)
-    trajectories: int = _at_least(12, 1)
-    steps: int = _at_least(9, 1)
-    candidates: int = _at_least(33, 2)
-    random_step_prob: float = setting(0.3, check=lambda v: 0 <= v <= 1, allowed="in [0, 1]")
-    batch_size: int = _at_least(32, 1)
-    lr: float = setting(1e-3, check=lambda v: v > 0, allowed="a positive number")
-    loss: str = setting(
-        "listwise", check=lambda v: v in LOSSES, allowed=f"one of {', '.join(LOSSES)}"
-    )
+    epochs: int = setting(6, allows=at_least(1))
+    trajectories: int = setting(12, allows=at_least(1))
+    steps: int = setting(9, allows=at_least(1))
+    candidates: int = setting(33, allows=at_least(2))
+    random_step_prob: float = setting(0.3, allows=between(0, 1))
+    batch_size: int = setting(32, allows=at_least(1))
+    lr: float = setting(1e-3, allows=positive())
+    loss: str = setting("listwise", allows=one_of(LOSSES))
     train_points: int = 256
     eval_points: int = 256
     threads: int = 0
-    max_models: int = _at_least(0, 0, "an integer >= 0 (0: every training model)")
+    max_models: int = setting(0, allows=at_least(0, note="0: every training model"))
     map_features: bool = False
     start_views: tuple[int, ...] = DEFAULT_START_VIEWS
     # Not a key (the schema has no such key): every run trains on the same categories.
