@@ -15,7 +15,7 @@ import nbv.dataset
 from nbv.planning.gain_scorer import load_scorer
 from nbv.planning.hull_sampling import convex_hull
 from nbv.planning.planner import plan as sco_plan
-from nbv.planning.planner import plan_sph
+from nbv.planning.planner import sph_hull_points
 from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned_network import ConditionedPolicy
@@ -240,8 +240,8 @@ def test_sph_planner_plans_on_the_signature(model):
         np.random.default_rng(2), sph=True, settings=lmax2, intrinsics=SMALL_CAMERA
     )
     episode = run_episode(model, "permuted", 1, policy)
-    expected = plan_sph(
-        view.view_points(1),
+    expected = sco_plan(
+        sph_hull_points(view.view_points(1), lmax2.lmax),
         view.poses[:, :3, 3],
         settings=lmax2,
         exclude=[1],

@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import plotly.graph_objects as go
@@ -267,38 +268,16 @@ def build_plan_figure(
     return figure
 
 
-def write_plan_page(
-    path: Path,
-    *,
-    points: np.ndarray,
-    hull_vertices: np.ndarray,
-    hull_faces: np.ndarray,
-    candidates: np.ndarray,
-    chosen: Sequence[int],
-    visited: Sequence[int],
-    title: str,
-    up: str = "y",
-    surroundings: np.ndarray | None = None,
-) -> None:
+def write_plan_page(path: Path, **scene: Any) -> None:
     """Write the plan's self-contained interactive page to ``path`` (whole or not at all).
 
-    Arguments as in :func:`build_plan_figure`. plotly.js is embedded, so the file opens from disk
-    with no network. The page fills the browser window.
+    ``scene``: the keyword arguments of :func:`build_plan_figure`. plotly.js is embedded, so the
+    file opens from disk with no network. The page fills the browser window.
 
     Raises:
         ValueError: bad input, one message naming the argument; nothing is written then.
     """
-    figure = build_plan_figure(
-        points=points,
-        hull_vertices=hull_vertices,
-        hull_faces=hull_faces,
-        candidates=candidates,
-        chosen=chosen,
-        visited=visited,
-        title=title,
-        up=up,
-        surroundings=surroundings,
-    )
+    figure = build_plan_figure(**scene)
     html = figure.to_html(
         include_plotlyjs=True,
         full_html=True,
