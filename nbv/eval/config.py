@@ -70,11 +70,6 @@ def _optional_path(value: str | None) -> Path | None:
     return Path(value) if value else None
 
 
-def _camera(value: dict) -> Intrinsics:
-    """``{width, height, focal}`` of ``conf/camera/`` as the camera (principal point centred)."""
-    return Intrinsics.centred(value["width"], value["height"], value["focal"])
-
-
 def _allowed(key: str, values: tuple, allowed: tuple, empty_ok: bool = False) -> None:
     if not values and not empty_ok:
         raise EvalConfigError(f"{key} is empty; allowed: {', '.join(allowed)}")
@@ -134,7 +129,9 @@ class PrepareSettings:
     dir: Path = Path("outputs/eval/prepared")
     backend: str = "raycast"
     blender: str | None = None
-    camera: Intrinsics = setting(factory=Intrinsics.centred, config=CameraConfig, convert=_camera)
+    camera: Intrinsics = setting(
+        factory=Intrinsics.centred, config=CameraConfig, convert=Intrinsics.from_config
+    )
     n_gt: int = setting(DEFAULT_N_GT, allows=at_least(1))
     eps: float = setting(DEFAULT_EPS, allows=positive("distance"))
     points_per_view: int = setting(DEFAULT_POINTS_PER_VIEW, allows=at_least(0, note="0 = all"))

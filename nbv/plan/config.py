@@ -39,11 +39,6 @@ def _null_or_positive(value: float | None) -> bool:
     return value is None or value > 0
 
 
-def _camera(camera: dict) -> Intrinsics:
-    """``camera: {width, height, focal}`` (``conf/camera/``) as the planner's intrinsics."""
-    return Intrinsics.centred(camera["width"], camera["height"], camera["focal"])
-
-
 @dataclass(frozen=True)
 class ViewspaceSettings(ViewspaceSpec):
     """``viewspace:``, the candidate views: a :class:`ViewspaceSpec` and the cameras' distance.
@@ -192,7 +187,9 @@ class PlanSettings:
     candidates: CandidateSettings = setting(factory=CandidateSettings)
     start_view: int = setting(0, allows=at_least(0))
     n_views: int = setting(EPISODE_VIEWS, allows=at_least(2))
-    camera: Intrinsics = setting(factory=Intrinsics, config=CameraConfig, convert=_camera)
+    camera: Intrinsics = setting(
+        factory=Intrinsics, config=CameraConfig, convert=Intrinsics.from_config
+    )
     match_degrees: float = setting(2.0, check=lambda v: 0 <= v < 90, allowed="degrees in [0, 90)")
     points_per_view: int = setting(DEFAULT_POINTS_PER_VIEW, allows=at_least(0, note="0 = all"))
     eps: float = setting(DEFAULT_EPS, allows=positive("distance"))
