@@ -108,17 +108,8 @@ def plan(
     poses = viewspace_poses(viewspace) if poses is None else as_poses(poses)
     if len(poses) != len(viewspace):
         raise ValueError(f"poses has {len(poses)} cameras, the viewspace {len(viewspace)}")
-    sets = view_sets(
-        samples,
-        normals,
-        poses,
-        intrinsics,
-        settings.simulation,
-        eps,
-        hull,
-        face_ids,
-        settings.dilate,
-    )
+    sets = view_sets(samples, normals, poses, intrinsics, settings.simulation, eps, hull,
+                     face_ids, settings.dilate)  # fmt: skip
     t3 = clock()
     rows = pack_sets(sets)
     t4 = clock()
