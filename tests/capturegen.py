@@ -15,7 +15,10 @@ from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics, project
 from nbv.geometry.scores import DEFAULT_EPS
+from nbv.plan.config import PlanSettings
 from nbv.plan.method import policy_rng
+from nbv.plan.planner import Planner
+from nbv.plan.result import PlanResult
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import run_episode
@@ -88,3 +91,9 @@ def write_folder(folder: Path, model, views: list[int], kind: str, scale=1.0, sh
                                cy=k.cy), "no_return": "free", "views": entries}  # fmt: skip
     (folder / "views.json").write_text(json.dumps(spec))
     return folder
+
+
+def plan_captures(settings: PlanSettings) -> PlanResult:
+    """What ``python -m nbv.plan captures=...`` plans: the folder loaded as the command loads it,
+    then one decision."""
+    return Planner.load(settings.captures, settings).decide()

@@ -241,10 +241,11 @@ def test_a_bad_capture_folder_is_refused_in_one_line_and_leaves_nothing(episode,
 
 @pytest.mark.parametrize("method", ["hull_sco", "ig"])
 def test_the_bench_decision_is_the_plan_from_the_same_capture_file(box, tmp_path, method):
+    from capturegen import plan_captures
+
     from nbv.assets.meshes import load_mesh, normalise
     from nbv.bench.plan import decide
     from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
-    from nbv.plan.next_view import plan_captures
     from nbv.planning.settings import PlannerSettings
     from nbv.render.raycast import render_raycast
 

@@ -12,13 +12,12 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 import pytest
-from capturegen import CAMERA, EPS, START, capture_model, episode_views, write_folder
+from capturegen import CAMERA, EPS, START, capture_model, episode_views, plan_captures, write_folder
 
 from nbv.geometry.camera import Intrinsics, opencv_to_blender
 from nbv.plan.captures import CaptureError, check_rigid, read_captures, write_captures
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.method import policy_rng
-from nbv.plan.next_view import plan_captures
 from nbv.plan.object_estimate import EstimateSettings, estimate_object
 from nbv.planning.information_gain import view_gains
 from nbv.planning.settings import PlannerSettings, VolumetricSettings

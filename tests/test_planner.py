@@ -13,7 +13,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from capturegen import CAMERA, EPS, START, capture_model, depth_image, episode_views, write_folder
+from capturegen import (
+    CAMERA,
+    EPS,
+    START,
+    capture_model,
+    depth_image,
+    episode_views,
+    plan_captures,
+    write_folder,
+)
 
 from nbv.assets.synthetic.catalogue import make_model
 from nbv.config.schema import ConfigError
@@ -21,7 +30,6 @@ from nbv.geometry.camera import Intrinsics, opencv_to_blender
 from nbv.plan import NextView, Planner
 from nbv.plan.captures import CaptureError
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
-from nbv.plan.next_view import plan_captures
 from nbv.render.scene import SceneSettings, table_scene
 
 ROOT = Path(__file__).resolve().parents[1]
