@@ -312,6 +312,42 @@ def _validation_auc(
     return result
 
 
+def _resume(last: Path, plain: dict, model, optimizer) -> tuple[list[dict], float, int]:
+    """``(rows, best, first epoch)`` of the run in ``last`` when it holds the same settings
+    (its weights and optimizer loaded into ``model`` and ``optimizer``), else a fresh start.
+
+    Raises:
+        ValueError: ``last`` was trained with other settings.
+    """
+    if not last.exists():
+        return [], -np.inf, 0
+    saved, extra = load_conditioned(last)
+    if not _same_run(extra.get("settings"), plain):
+        raise ValueError(f"{last} was trained with other settings; set another out_dir")
+    model.load_state_dict(saved.state_dict())
+    opt = extra["optimizer"]
+    opt["state"] = {int(k): v for k, v in opt["state"].items()}
+    optimizer.load_state_dict(opt)
+    first = int(extra["epoch"]) + 1
+    log.info("resuming at epoch %d", first + 1)
+    return list(extra["rows"]), float(extra["best"]), first
+
+
+def _train_epoch(model, optimizer, samples: dict, order: np.ndarray,
+                 settings: ConditionedSettings) -> list[float]:  # fmt: skip
+    """One pass over ``samples`` in ``order``, batch by batch; the batches' losses."""
+    model.train()
+    losses = []
+    for i in range(0, len(order), settings.batch_size):
+        x, d, s, t, f = _tensors(samples, order[i : i + settings.batch_size])
+        optimizer.zero_grad()
+        loss = batch_loss(settings.loss, model(x, d, s, f), t, s)
+        loss.backward()
+        optimizer.step()
+        losses.append(loss.item())
+    return losses
+
+
 def run(settings: ConditionedSettings) -> dict:
     """Train; returns the last epoch's metrics and the chosen epoch. Resumes from ``last.pt``
     when it holds the same settings but, perhaps, fewer ``epochs``: an epoch's samples come from
@@ -346,19 +382,8 @@ def run(settings: ConditionedSettings) -> dict:
     for key in ("start_views", "categories", "select_categories"):
         plain[key] = list(plain[key])
     plain["net"] = net.to_dict()
-    rows, best, first = [], -np.inf, 0
     last = out / "last.pt"
-    if last.exists():
-        saved, extra = load_conditioned(last)
-        if _same_run(extra.get("settings"), plain):
-            model.load_state_dict(saved.state_dict())
-            opt = extra["optimizer"]
-            opt["state"] = {int(k): v for k, v in opt["state"].items()}
-            optimizer.load_state_dict(opt)
-            rows, best, first = list(extra["rows"]), float(extra["best"]), int(extra["epoch"]) + 1
-            log.info("resuming at epoch %d", first + 1)
-        else:
-            raise ValueError(f"{last} was trained with other settings; set another out_dir")
+    rows, best, first = _resume(last, plain, model, optimizer)
     for epoch in range(first, settings.epochs):
         t0 = time.perf_counter()
         rng = np.random.default_rng([settings.seed, epoch])
@@ -366,15 +391,7 @@ def run(settings: ConditionedSettings) -> dict:
         log.info("epoch %d: %d samples drawn in %.0f s", epoch + 1, len(samples["points"]),
                  time.perf_counter() - t0)  # fmt: skip
         order = rng.permutation(len(samples["points"]))
-        model.train()
-        losses = []
-        for i in range(0, len(order), settings.batch_size):
-            x, d, s, t, f = _tensors(samples, order[i : i + settings.batch_size])
-            optimizer.zero_grad()
-            loss = batch_loss(settings.loss, model(x, d, s, f), t, s)
-            loss.backward()
-            optimizer.step()
-            losses.append(loss.item())
+        losses = _train_epoch(model, optimizer, samples, order, settings)
         probe = {k: v[order[:300]] for k, v in samples.items()}
         train_pred = _predict(model, probe, settings.batch_size)
         val_pred = _predict(model, val_samples, settings.batch_size)
