@@ -120,6 +120,7 @@ def _unexplained_bit_differences(
 
 
 @pytest.mark.parametrize("mesh_set", ["shared", "synthetic"])
+@pytest.mark.slow
 def test_binary_depth_and_coverage_match_the_wheel(binary, mesh_set):
     """The binary and the bpy wheel on the same meshes, at the dataset's 640 x 480: depth within
     1e-4 on >= 99.9% of the pixels both hit, hit masks differing on <= 0.01% of the pixels, and
@@ -147,6 +148,7 @@ def test_binary_depth_and_coverage_match_the_wheel(binary, mesh_set):
         assert not unexplained, (key, f"coverage bits differ away from eps: {unexplained}")
 
 
+@pytest.mark.slow
 def test_the_script_refuses_a_version_outside_the_range(binary, tmp_path):
     """The script, run by the binary, refuses a Blender outside the job's range, naming both."""
     vertices, faces, pose, _ = preflight_scene()
@@ -176,6 +178,7 @@ def test_the_script_refuses_a_version_outside_the_range(binary, tmp_path):
 # The preflight check
 
 
+@pytest.mark.slow
 def test_preflight_accepts_the_binary_and_the_wheel(binary):
     info = check_blender(binary, threads=1)
     assert info.version == binary_version(binary)
@@ -185,6 +188,7 @@ def test_preflight_accepts_the_binary_and_the_wheel(binary):
     assert wheel.version == (5, 0, 1) and wheel.python == ".".join(map(str, sys.version_info[:3]))
 
 
+@pytest.mark.slow
 def test_preflight_says_what_to_install_when_numpy_is_missing(binary, tmp_path):
     fake = without_numpy(binary, tmp_path)
     version = ".".join(map(str, binary_version(binary)))
@@ -195,6 +199,7 @@ def test_preflight_says_what_to_install_when_numpy_is_missing(binary, tmp_path):
     assert "cannot import numpy" in message and "apt-get install python3-numpy" in message
 
 
+@pytest.mark.slow
 def test_dataset_refuses_to_start_without_numpy_and_writes_nothing(binary, tmp_path):
     """``python -m nbv.dataset renderer.blender=<a binary without numpy>``: one line, status 2,
     no model tried, no output folder."""

@@ -196,6 +196,7 @@ def test_captured_share_of_the_best_gain():
     assert captured(scores, gains, pad) == pytest.approx((0.0 + 0.3) / (0.5 + 0.3))
 
 
+@pytest.mark.slow
 def test_a_real_training_run_is_reproducible_and_keeps_its_decisions(tmp_path_factory):
     data = make_train_dataset(tmp_path_factory.mktemp("scorer_data"))
     out = tmp_path_factory.mktemp("scorer_run")

@@ -245,6 +245,7 @@ def canvas_drawn(run: BrowserRun) -> bool:
     return run.ready_ms is not None and min(counts) >= 50 and background < 0.9 * h * w
 
 
+@pytest.mark.slow
 def test_page_renders_in_chromium_from_disk_without_the_network(chromium, tmp_path):
     page = tmp_path / "plan.html"
     write_plan_page(page, **scene(), chosen=[3, 7, 1], visited=[0, 3], title="blob")

@@ -274,6 +274,7 @@ class FakeRobot:
         self.pose = pose
 
 
+@pytest.mark.slow
 def test_the_robot_loop_of_the_docs_runs(cabinet, tmp_path, monkeypatch):
     code = snippet("### A robot loop")
     assert len(code.strip().splitlines()) <= 16
@@ -291,6 +292,7 @@ def test_the_robot_loop_of_the_docs_runs(cabinet, tmp_path, monkeypatch):
 
 
 @pytest.mark.skipif(not SHELF.is_dir(), reason="../shared/captures/shelf_bin is not here")
+@pytest.mark.slow
 def test_the_shelf_bin_example_plans_from_three_views(tmp_path):
     command = snippet("## The shelf bin", "bash").strip()
     args = [a.strip("'") for a in command.split()[3:] if a != "\\"]

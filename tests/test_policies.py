@@ -108,6 +108,7 @@ def all_policies(networks, seed: int = 0) -> dict:
 
 
 @pytest.mark.parametrize("viewspace", ["original", "permuted"])
+@pytest.mark.slow
 def test_every_policy_gives_a_valid_episode_and_the_oracle_leads_at_view_two(
     model, networks, viewspace
 ):
@@ -350,6 +351,7 @@ class _SeesOnlyCaptured:
         return self.inner(dataclasses.replace(state, model=model))
 
 
+@pytest.mark.slow
 def test_policies_other_than_the_oracle_read_only_the_captured_views(model, networks):
     # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
     # it has not captured would pick otherwise on the blinded model.

@@ -97,6 +97,7 @@ def lacking_run(tmp_path_factory):
     return tmp, data, settings, evaluate(settings)
 
 
+@pytest.mark.slow
 def test_the_evaluation_renders_a_lacking_viewspace_as_the_dataset_would(lacking_run):
     tmp, data, settings, evaluation = lacking_run
     (info,) = evaluation.datasets

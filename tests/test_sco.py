@@ -517,6 +517,7 @@ def test_the_signature_hull_sits_at_the_centroid_and_plans():
     )
 
 
+@pytest.mark.slow
 def test_raycast_planning_agrees_with_the_analytic_path():
     # The two view simulations of the planner on the same hull samples, at the dataset's camera:
     # their view sets agree on most samples, and the analytic plan covers, as the ray caster
