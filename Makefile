@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup real-data dataset test bench train eval eval-real lint preview clean
+.PHONY: setup real-data dataset test test-fast bench train eval eval-real lint preview clean
 
 setup: $(STAMP)
 
@@ -25,6 +25,11 @@ dataset: $(STAMP)
 
 test: real-data
 	$(PY) -m pytest -q $(ARGS)
+
+# The fast tier, for every change: the tests not marked slow, blender or slurm
+# (docs/development.md). `make test` runs them all.
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -m "not slow and not blender and not slurm" $(ARGS)
 
 # Settings as key=value (conf/bench.yaml), e.g. make bench ARGS="network=false render=false".
 bench: $(STAMP)

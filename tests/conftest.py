@@ -8,13 +8,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from needs import in_ci
 
 SLURM_SCRIPTS = Path(__file__).parent / "slurm"
-
-
-def _in_ci() -> bool:
-    """True when the CI variable is set to anything but an empty string, 0, false or no."""
-    return os.environ.get("CI", "").strip().lower() not in ("", "0", "false", "no")
 
 
 def _can_be_root() -> bool:
@@ -72,12 +68,12 @@ def slurm_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SlurmClu
     """Start tests/slurm/start.sh in a temporary folder, set SLURM_CONF for the session, and stop
     the daemons afterwards. Outside CI it skips when SLURM is not installed or root is out of
     reach; otherwise a cluster that does not start fails the tests instead of skipping them."""
-    if not _in_ci() and shutil.which("sbatch") is None:
+    if not in_ci() and shutil.which("sbatch") is None:
         pytest.skip(
             "SLURM is not installed; enable these tests with `bash tests/slurm/install.sh` "
             "(root or passwordless sudo)"
         )
-    if not _in_ci() and not _can_be_root():
+    if not in_ci() and not _can_be_root():
         pytest.skip(
             "a private SLURM test cluster needs root or passwordless sudo "
             "(slurmd starts jobs as their owner)"

@@ -10,6 +10,7 @@ from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.dataset.samples import SampleSettings, write_samples
 from nbv.geometry.camera import Intrinsics
+from nbv.planning.settings import VolumetricSettings
 
 SMALL_CAMERA = Intrinsics.centred(64, 48, 48.0)
 
@@ -46,13 +47,6 @@ def small_settings(tmp_path: Path, **overrides) -> GenerationSettings:
     return GenerationSettings(**base)
 
 
-#: A very small PCNBV (the same sizes as conf/model/tiny.yaml).
-TINY_NET = dict(
-    k=4, growth=4, dense_layers=2, blocks=2, first_channels=8, attention_channels=8,
-    conv_channels=[32], fc_channels=[32],
-)  # fmt: skip
-
-
 def make_train_dataset(out: Path) -> Path:
     """One train and one valid synthetic model per training category, ray cast at 48 x 36, with
     coverage samples."""
@@ -73,3 +67,26 @@ def make_train_dataset(out: Path) -> Path:
         progress=False,
     )
     return out
+
+
+def make_tiny_dataset(out: Path, models: int = 2) -> Path:
+    """The first ``models`` synthetic models of the unseen categories (split test), ray cast
+    with a 64 x 48 camera, 1000 ground-truth points, 50 stored points a view."""
+    summary = generate(
+        GenerationSettings(
+            out_dir=out,
+            synthetic=Synthetic(counts={"train": 0, "valid": 0, "test": 0, "unseen": 1}),
+            limit=models,
+            intrinsics=SMALL_CAMERA,
+            n_gt=1000,
+            points_per_view=50,
+            renderer=Renderer(backend="raycast"),
+            progress=False,
+        )
+    )
+    assert summary.produced == models
+    return out
+
+
+#: The information-gain planner on the small camera: coarse voxels, 4-pixel background blocks.
+VOLUMETRIC = VolumetricSettings(resolution=0.04, columns=8, block=4)

@@ -1,6 +1,14 @@
-"""Point sets of simple shapes with known answers, for the tests of the hull planner."""
+"""Simple shapes and scenes with known answers: point sets for the hull planner's tests, and a
+cup whose pocket only one view sees, for the information-gain planners'."""
 
 import numpy as np
+import trimesh
+
+from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
+from nbv.planning.information_gain import candidate_voxels
+from nbv.planning.occupancy import OccupancyMap, background_directions
+from nbv.planning.settings import VolumetricSettings
+from nbv.render.raycast import render_raycast
 
 
 def fibonacci_sphere(n: int) -> np.ndarray:
@@ -17,3 +25,47 @@ def cube_corners(half: float) -> np.ndarray:
     return np.array(
         [[x, y, z] for x in (-half, half) for y in (-half, half) for z in (-half, half)]
     )
+
+
+def cup() -> trimesh.Trimesh:
+    """A 0.7 x 0.5 x 0.5 box with a 0.3 x 0.3 pocket 0.6 deep, open towards +x."""
+    walls = [
+        ((-0.35, -0.25), (-0.25, 0.25), (-0.25, 0.25)),  # the pocket's bottom
+        ((-0.25, 0.35), (-0.25, -0.15), (-0.25, 0.25)),
+        ((-0.25, 0.35), (0.15, 0.25), (-0.25, 0.25)),
+        ((-0.25, 0.35), (-0.15, 0.15), (-0.25, -0.15)),
+        ((-0.25, 0.35), (-0.15, 0.15), (0.15, 0.25)),
+    ]
+    boxes = []
+    for bounds in walls:
+        lo, hi = np.array(bounds).T
+        boxes.append(trimesh.creation.box(bounds=np.stack([lo, hi])))
+    return trimesh.util.concatenate(boxes)
+
+
+#: The view of :func:`pocket_scene` that looks into the pocket.
+INTO_POCKET = 9
+
+
+def pocket_scene():
+    """The cup seen from 9 views all around but never into its pocket (view ``INTO_POCKET``
+    does): ``(directions (V, 3), poses, camera, captured (V,) bool, candidate voxels, map)``
+    at the default ig settings."""
+    mesh = cup()
+    camera = Intrinsics.centred(96, 72, 72.0)
+    oblique = [(np.cos(a), np.sin(a) * np.cos(b), np.sin(a) * np.sin(b))
+               for a in [np.radians(40)] for b in np.radians([0, 90, 180, 270])]  # fmt: skip
+    diagonal = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+    directions = np.array([(-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1), *oblique,
+                           (1, 0, 0), *diagonal], dtype=float)  # fmt: skip
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    poses = viewspace_poses(directions)
+    depth = render_raycast(mesh.vertices, mesh.faces, poses, camera)
+    captured = np.arange(len(directions)) < INTO_POCKET
+    occupancy = OccupancyMap(VolumetricSettings().occupancy())
+    for v in np.flatnonzero(captured):
+        points = backproject(depth[v], camera, poses[v])
+        misses = background_directions(points, poses[v], camera, block=4)
+        occupancy.insert_view(poses[v][:3, 3], points, misses)
+    voxels = candidate_voxels(poses, camera, 16, occupancy.settings)
+    return directions, poses, camera, captured, voxels, occupancy

@@ -7,7 +7,8 @@ import logging
 
 import numpy as np
 import pytest
-from test_policies import VOLUMETRIC, make_tiny_dataset, save_tiny_checkpoint
+from datagen import VOLUMETRIC, make_tiny_dataset
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.assets.meshes import Mesh, normalise
@@ -67,6 +68,7 @@ def random_states(models, per_model: int, seed: int) -> list[tuple[np.ndarray, n
 
 
 @pytest.mark.parametrize("method", ["pcnbv", "pcnbv_sph"])
+@pytest.mark.slow
 def test_batched_gains_and_picks_equal_one_at_a_time_on_the_shipped_weights(rendered_views, method):
     policy = NetworkPolicy.from_checkpoint(shipped_weights(method), 33, precision="fp32")
     states = random_states(rendered_views, 12, seed=1)  # 72 states, more than MAX_BATCH
@@ -132,6 +134,7 @@ def lockstep(proto, episodes, model, viewspace: str, starts: list[int]) -> list[
 
 
 @pytest.mark.parametrize("method", ["pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map"])
+@pytest.mark.slow
 def test_lockstep_episodes_take_the_views_of_one_at_a_time_episodes(dataset, method):
     """Shipped weights in float32 on whole episodes of the evaluation protocol's start views;
     each episode's own policy records one entry a decision for every stage."""

@@ -83,9 +83,10 @@ def test_plain_reference_decides_like_the_policy_on_an_fp32_inference_copy(kind)
     assert len(set(ours)) == 10
 
 
+@pytest.mark.slow
 def test_network_rows_are_well_formed_on_tiny_networks(tmp_path):
     """Every network row exists with positive times and its floor or slowdown (not its speed)."""
-    from test_policies import save_tiny_checkpoint
+    from tiny_nets import save_tiny_checkpoint
 
     from nbv.bench.network import LOAD_TARGET, network_rows
 
@@ -136,6 +137,7 @@ def test_lockstep_episodes_equal_one_at_a_time_episodes():
     ]
 
 
+@pytest.mark.slow
 def test_flop_count_equals_torch_flop_counter():
     import torch
     from torch.utils.flop_counter import FlopCounterMode
@@ -232,7 +234,7 @@ def test_training_step_is_one_adam_step_on_the_squared_error():
     import copy
 
     import torch
-    from test_policies import TINY_NET
+    from tiny_nets import TINY_NET
 
     from nbv.bench.training import random_batch, training_step
     from nbv.models.config import PCNBVConfig
@@ -259,9 +261,10 @@ def test_training_step_is_one_adam_step_on_the_squared_error():
 @pytest.mark.parametrize(
     ("precision", "kind"), [("fp32", "float32"), ("bf16", "bfloat16 autocast")]
 )
+@pytest.mark.slow
 def test_training_rows_are_well_formed_on_tiny_networks(tmp_path, precision, kind):
     """A training row per network with positive rates and its floor (not its speed)."""
-    from test_policies import TINY_NET, save_tiny_checkpoint
+    from tiny_nets import TINY_NET, save_tiny_checkpoint
 
     from nbv.bench.floor import pcnbv_flops
     from nbv.bench.training import training_rows
@@ -292,6 +295,7 @@ def test_training_rows_are_well_formed_on_tiny_networks(tmp_path, precision, kin
     assert "| tiny training step" in format_table(rows)
 
 
+@pytest.mark.slow
 def test_configure_openmp_sets_a_passive_wait_before_torch_and_keeps_the_users():
     import subprocess
     import sys

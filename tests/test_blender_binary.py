@@ -9,7 +9,6 @@ The sbatch script with ``BLENDER=`` is tested in ``tests/test_dataset_slurm.py``
 from __future__ import annotations
 
 import json
-import os
 import re
 import subprocess
 import sys
@@ -17,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import _in_ci
+from needs import require_binary
 from scipy.spatial import cKDTree
 
 from nbv.assets.meshes import Mesh, load_mesh, normalise, sample_surface
@@ -35,23 +34,12 @@ from nbv.render.raycast import render_raycast
 pytestmark = pytest.mark.blender
 
 REPO = Path(__file__).resolve().parents[1]
-BINARY = os.environ.get("NBV_TEST_BLENDER", "/usr/bin/blender")
 #: The development meshes beside the checkout (CI has a copy of shared/ beside its clone).
 SHARED_MESHES = REPO.parent / "shared" / "meshes"
 #: The dataset's camera, and four views of the original viewspace: the pole, 30 degrees up, the
 #: equator, 30 degrees down.
 CAMERA = Intrinsics.centred()
 VIEWS = [0, 9, 20, 30]
-
-
-def require_binary() -> str:
-    """The Blender binary under test; fails in CI when it is missing, skips elsewhere."""
-    if os.access(BINARY, os.X_OK):
-        return BINARY
-    message = f"no Blender binary at {BINARY}; install it with `bash scripts/ensure_blender.sh`"
-    if _in_ci():
-        pytest.fail(message + " (.ci/run should have)", pytrace=False)
-    pytest.skip(message)
 
 
 @pytest.fixture(scope="module")
@@ -132,6 +120,7 @@ def _unexplained_bit_differences(
 
 
 @pytest.mark.parametrize("mesh_set", ["shared", "synthetic"])
+@pytest.mark.slow
 def test_binary_depth_and_coverage_match_the_wheel(binary, mesh_set):
     """The binary and the bpy wheel on the same meshes, at the dataset's 640 x 480: depth within
     1e-4 on >= 99.9% of the pixels both hit, hit masks differing on <= 0.01% of the pixels, and
@@ -159,6 +148,7 @@ def test_binary_depth_and_coverage_match_the_wheel(binary, mesh_set):
         assert not unexplained, (key, f"coverage bits differ away from eps: {unexplained}")
 
 
+@pytest.mark.slow
 def test_the_script_refuses_a_version_outside_the_range(binary, tmp_path):
     """The script, run by the binary, refuses a Blender outside the job's range, naming both."""
     vertices, faces, pose, _ = preflight_scene()
@@ -188,6 +178,7 @@ def test_the_script_refuses_a_version_outside_the_range(binary, tmp_path):
 # The preflight check
 
 
+@pytest.mark.slow
 def test_preflight_accepts_the_binary_and_the_wheel(binary):
     info = check_blender(binary, threads=1)
     assert info.version == binary_version(binary)
@@ -197,6 +188,7 @@ def test_preflight_accepts_the_binary_and_the_wheel(binary):
     assert wheel.version == (5, 0, 1) and wheel.python == ".".join(map(str, sys.version_info[:3]))
 
 
+@pytest.mark.slow
 def test_preflight_says_what_to_install_when_numpy_is_missing(binary, tmp_path):
     fake = without_numpy(binary, tmp_path)
     version = ".".join(map(str, binary_version(binary)))
@@ -207,6 +199,7 @@ def test_preflight_says_what_to_install_when_numpy_is_missing(binary, tmp_path):
     assert "cannot import numpy" in message and "apt-get install python3-numpy" in message
 
 
+@pytest.mark.slow
 def test_dataset_refuses_to_start_without_numpy_and_writes_nothing(binary, tmp_path):
     """``python -m nbv.dataset renderer.blender=<a binary without numpy>``: one line, status 2,
     no model tried, no output folder."""

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 from datagen import make_train_dataset
-from test_policies import save_tiny_checkpoint
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.geometry.scores import coverage_gains
@@ -122,6 +122,7 @@ def dataset(tmp_path_factory):
     return make_train_dataset(tmp_path_factory.mktemp("conditioned"))
 
 
+@pytest.mark.slow
 def test_samples_hold_the_true_gains_of_a_turned_scene(dataset):
     ds = nbv.dataset.open(dataset)
     pool = _pool(ds.model(ds.keys(split="train")[0]), ds.intrinsics)
@@ -188,6 +189,7 @@ def test_training_map_features_are_those_the_policy_reads(dataset):
         ConditionedPolicy(net).map_features(EpisodeState(model, "mix", state, order))
 
 
+@pytest.mark.slow
 def test_a_real_training_run_plays_both_viewspaces(dataset, tmp_path):
     settings = ConditionedSettings(
         dataset, tmp_path / "run", epochs=2, trajectories=1, steps=3, train_points=64,
@@ -257,6 +259,7 @@ def test_held_out_categories_choose_the_checkpoint_and_are_never_trained_on(data
             replace(settings, select_categories=bad)
 
 
+@pytest.mark.slow
 def test_a_real_training_run_with_map_features(dataset, tmp_path):
     from nbv.eval.config import EvalSettings
     from nbv.eval.curve import _learner

@@ -107,6 +107,7 @@ CASES = [(name, None) for name in ENTRY_POINTS] + [
 
 
 @pytest.mark.parametrize("name, option", CASES, ids=[f"{n}-{o or 'defaults'}" for n, o in CASES])
+@pytest.mark.slow
 def test_every_config_composes_with_every_group_option(name, option):
     cfg = composed(name, [option] if option else [], hydra=True)
     # The hydra parts the config sets resolve too (run and sweep folders, the launcher).
@@ -123,6 +124,7 @@ def test_every_config_composes_with_every_group_option(name, option):
         assert other is None or isinstance(other, SampleSettings | PCNBVConfig)
 
 
+@pytest.mark.slow
 def test_every_option_of_every_group_folder_is_covered():
     covered = set()
     for name in ENTRY_POINTS:
@@ -159,6 +161,7 @@ def test_the_conditioned_networks_widths_are_settings():
     assert net == ConditionedConfig(point_channels=(128, 256), head_channels=(256, 128))
 
 
+@pytest.mark.slow
 def test_shared_groups_write_a_value_once():
     def everything(overrides):
         ds, samples = build("dataset", composed("dataset", overrides))
@@ -239,12 +242,14 @@ def test_hydra_refuses_unknown_keys_and_wrong_types_naming_the_key(name, overrid
         ("train_conditioned", "epochs=0", "epochs=0: must be an integer >= 1"),
     ],
 )
+@pytest.mark.slow
 def test_settings_refuse_what_composes_but_cannot_be_used(name, override, message):
     with pytest.raises(ConfigError) as err:
         build(name, composed(name, [override]))
     assert message in str(err.value)
 
 
+@pytest.mark.slow
 def test_a_start_view_outside_the_viewspace_says_how_many_views_it_has(tmp_path):
     for vs in ("original", "permuted"):
         with pytest.raises(ConfigError) as err:
@@ -314,6 +319,7 @@ def cli(tmp_path: Path, module: str, *args: str) -> subprocess.CompletedProcess[
          "train.summary: no finished training runs (with heldout.json) under nowhere"),
     ],
 )  # fmt: skip
+@pytest.mark.slow
 def test_a_refused_run_says_why_in_one_line_and_leaves_no_folder(tmp_path, module, args, line):
     done = cli(tmp_path, module, *args)
     assert done.returncode == 2, done.stderr
@@ -321,6 +327,7 @@ def test_a_refused_run_says_why_in_one_line_and_leaves_no_folder(tmp_path, modul
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.slow
 def test_a_refused_run_keeps_a_run_folder_that_held_something(tmp_path):
     keep = tmp_path / "keep"
     keep.mkdir()
@@ -331,6 +338,7 @@ def test_a_refused_run_keeps_a_run_folder_that_held_something(tmp_path):
     assert "shard=3: must be in 0..0" in (keep / "dataset.log").read_text()
 
 
+@pytest.mark.slow
 def test_the_job_log_gets_the_info_messages_and_stdout_stays_clean(tmp_path):
     done = cli(
         tmp_path, "nbv.dataset", "camera=small", "renderer.backend=raycast", "limit=1",

@@ -115,6 +115,7 @@ def test_generate_writes_the_design_layout(tmp_path):
     assert ds.intrinsics == SMALL_CAMERA
 
 
+@pytest.mark.slow
 def test_coverage_bits_match_merged_cloud(tmp_path):
     generate(small_settings(tmp_path, points_per_view=0))
     ds = nbv.dataset.open(tmp_path / "out")
@@ -134,6 +135,7 @@ def test_coverage_bits_match_merged_cloud(tmp_path):
         )
 
 
+@pytest.mark.slow
 def test_shards_together_equal_one_run(tmp_path):
     one = small_settings(tmp_path / "a")
     generate(one)
@@ -159,6 +161,7 @@ def test_rerun_skips_done_models_and_refuses_other_settings(tmp_path):
         generate(small_settings(tmp_path, eps=0.01))
 
 
+@pytest.mark.slow
 def test_a_dataset_of_another_eps_is_refused_by_name(tmp_path):
     generate(small_settings(tmp_path, eps=LEGACY_EPS))  # as made before issue 29
     assert nbv.dataset.open(tmp_path / "out").attrs["eps"] == LEGACY_EPS
@@ -253,6 +256,7 @@ def test_the_command_keeps_the_data_identity_and_seeds_the_samples():
     assert off.sample_settings() is None and research.sample_settings() is None
 
 
+@pytest.mark.slow
 def test_show_writes_a_picture(tmp_path):
     generate(small_settings(tmp_path, keep_depth=True))
     out = tmp_path / "pic.png"
@@ -297,6 +301,7 @@ def _arrays(folder: Path) -> dict[str, np.ndarray]:
 
 
 @pytest.mark.blender
+@pytest.mark.slow
 def test_kill_nine_then_resume_gives_the_same_arrays(tmp_path):
     """A real `python -m nbv.dataset` with Blender, killed with SIGKILL mid-run, then rerun."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))

@@ -15,7 +15,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from test_blender_binary import require_binary
+from needs import require_binary
 
 from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
@@ -77,6 +77,7 @@ def assert_same_arrays(a: Path, b: Path) -> None:
             np.testing.assert_array_equal(arrays[0][key], arrays[1][key], err_msg=f"{name} {key}")
 
 
+@pytest.mark.slow
 def test_hydra_submitit_array_matches_local_run(slurm_cluster, tmp_path):
     out = tmp_path / "slurm"
     slurm_cluster.run(
@@ -120,6 +121,7 @@ def sbatch_array(tmp_path: Path, *overrides: str, **env: str) -> Path:
     return out
 
 
+@pytest.mark.slow
 def test_sbatch_script_array_matches_local_run(slurm_cluster, tmp_path):
     out = sbatch_array(tmp_path, "renderer.backend=raycast")
     local = tmp_path / "local"
@@ -127,6 +129,7 @@ def test_sbatch_script_array_matches_local_run(slurm_cluster, tmp_path):
     assert_same_arrays(out, local)
 
 
+@pytest.mark.slow
 def test_sbatch_script_with_a_blender_binary(slurm_cluster, tmp_path):
     """``BLENDER=/usr/bin/blender sbatch ...``: each task checks the binary first (its log says
     which Blender), then renders with it; the shards equal a local run with the same binary."""

@@ -65,6 +65,7 @@ def _near_pairs(near: NearTriangles, faces) -> set[tuple[int, int]]:
 
 
 @pytest.mark.parametrize("shape", ["blob", "slab", "cube", "fine", "cap"])
+@pytest.mark.slow
 def test_near_triangles_match_brute_force_distances(shape):
     rng = np.random.default_rng(12)
     if shape == "blob":

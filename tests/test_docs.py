@@ -358,6 +358,7 @@ def test_commands_found():
 
 
 @pytest.mark.parametrize("command", COMMANDS, ids=lambda c: c.id)
+@pytest.mark.slow
 def test_command_composes(command: Command):
     """A shown command composes against its config (a hydra app) or answers ``--help``."""
     assert module_source(command.module) is not None, (
@@ -416,6 +417,7 @@ def test_readme_shows_every_entry_point():
     assert not missing, f"README.md shows no example of: {', '.join(missing)}"
 
 
+@pytest.mark.slow
 def test_configuration_reference_is_current():
     """docs/configuration.md is what ``scripts/config_reference.py`` writes now."""
     script = ROOT / "scripts" / "config_reference.py"

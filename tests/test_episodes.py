@@ -36,6 +36,7 @@ def test_curves_are_monotone_and_match_bits(model):
     assert cov[-1] == pytest.approx(bits[views].any(axis=0).mean())
 
 
+@pytest.mark.slow
 def test_oracle_never_below_random_after_the_first_view(model):
     for start in (1, 10, 27):
         oracle = run_episode(model, "original", start, OraclePolicy())

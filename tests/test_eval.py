@@ -13,8 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from datagen import SMALL_CAMERA, write_meshes
-from test_policies import make_tiny_dataset, save_tiny_checkpoint
+from datagen import SMALL_CAMERA, make_tiny_dataset, write_meshes
+from evalgen import STARTS, tiny_settings
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.eval.config import (
@@ -48,7 +49,6 @@ from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     CHECKS,
     DEFAULT_METHODS,
-    NETWORK_INPUTS,
     PLANNERS,
     SHIPPED_SCORER,
     MethodContext,
@@ -58,7 +58,6 @@ from nbv.policies.registry import METHODS as METHODS_BY_NAME
 from nbv.policies.volumetric import InformationGainPolicy
 
 ROOT = Path(__file__).resolve().parents[1]
-STARTS = (1, 24)
 
 
 @pytest.fixture(scope="module")
@@ -75,25 +74,6 @@ def tiny(tmp_path_factory) -> dict[str, Path]:
     }
 
 
-def tiny_settings(
-    tiny: dict[str, Path], out: Path, checks=CHECKS, disturb_start_views=(24,), **kw
-) -> EvalSettings:
-    """Settings of the tiny dataset written to ``out`` (the disturbance checks and their start
-    views given flat, as keywords)."""
-    base = dict(
-        run=out.name,
-        out_root=out.parent,
-        data_dir=tiny["data"],
-        start_views=STARTS,
-        disturb=DisturbSettings(checks=checks, start_views=disturb_start_views),
-        checkpoints={name: str(tiny[name]) for name in NETWORK_INPUTS},
-        hull=PlannerSettings(n_samp=2048),
-        progress=False,
-    )
-    base.update(kw)
-    return EvalSettings(**base)
-
-
 @pytest.fixture(scope="module")
 def full_run(tiny, tmp_path_factory):
     """Every default method, both viewspaces, every check, outputs and plots."""
@@ -102,6 +82,7 @@ def full_run(tiny, tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_full_run_writes_every_output(full_run):
     names = {p.name for p in full_run.iterdir()}
     assert {"results.json", "summary.csv", "report.md"} <= names
@@ -313,6 +294,7 @@ def test_seeded_runs_repeat_and_seeds_matter(tiny, tmp_path):
     assert episode_rng(0, "random", "k", 3).random() == episode_rng(0, "random", "k", 3).random()
 
 
+@pytest.mark.slow
 def test_a_missing_checkpoint_takes_the_shipped_weights_and_a_wrong_one_is_skipped(tiny, tmp_path):
     from nbv.assets.weights import shipped_weights
 
@@ -422,6 +404,7 @@ def flat_square(path: Path) -> None:
     trimesh.Trimesh(vertices, [[0, 1, 2], [0, 2, 3]], process=False).export(path)
 
 
+@pytest.mark.slow
 def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_path):
     folder = write_meshes(tmp_path / "meshes", bad=True)
     flat_square(folder / "flat.ply")
@@ -471,6 +454,7 @@ def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_pa
         (dict(checkpoints={"pcnbv": "a.pt", "dqn": "b.pt"}), "checkpoints: unknown ['dqn']"),
     ],
 )  # fmt: skip
+@pytest.mark.slow
 def test_bad_config_is_refused(override, message):
     from hydra import compose, initialize_config_dir
 
@@ -489,6 +473,7 @@ def test_bad_config_is_refused(override, message):
     assert message in str(err.value)
 
 
+@pytest.mark.slow
 def test_worker_processes_give_the_records_of_one_process(tiny, tmp_path):
     kw = dict(methods=("random", "pcnbv", "ig"), viewspaces=("original",), checks=(),
               random_repeats=2)  # fmt: skip
@@ -553,6 +538,7 @@ def test_missing_dataset_and_bad_start_view_stop_before_any_episode(tiny, tmp_pa
         evaluate(tiny_settings(tiny, tmp_path, datasets=("test",)))
 
 
+@pytest.mark.slow
 def test_cli_refuses_a_bad_method_with_one_line(tmp_path):
     done = subprocess.run(
         [sys.executable, "-m", "nbv.eval", "methods=[random,magic]", f"out_root={tmp_path}"],
@@ -732,6 +718,7 @@ def test_a_dataset_of_another_eps_is_refused_by_name(tiny, tmp_path):
         evaluate(other)
 
 
+@pytest.mark.slow
 def test_a_run_in_this_process_takes_the_workers_thread_limits():
     """workers=1 runs the models in the calling process, with the threads of a worker (one torch
     and one BLAS thread by default), not the pools' defaults that oversubscribe the cores."""
@@ -777,6 +764,7 @@ if __name__ == "__main__":
 """
 
 
+@pytest.mark.slow
 def test_the_workers_give_each_model_as_it_finishes(tmp_path):
     """A slow model does not hold back the ones that finish after it: the evaluator logs each as
     it ends, so a run killed during the slow one keeps them."""

@@ -160,6 +160,7 @@ def view_mask(path: Path, gt: np.ndarray) -> np.ndarray:
     return _MASKS[path]
 
 
+@pytest.mark.slow
 def test_pcnbv_criterion_on_the_exported_files_gives_our_coverage_and_auc(run, exported):
     manifest = json.loads((exported / "manifest.json").read_text())
     info = manifest["datasets"]["meshes"]
@@ -182,6 +183,7 @@ def test_pcnbv_criterion_on_the_exported_files_gives_our_coverage_and_auc(run, e
     assert worst_coverage <= 1e-6 and worst_auc <= 1e-6
 
 
+@pytest.mark.slow
 def test_the_stored_2048_point_views_would_score_lower(run, exported):
     """Why the export re-casts: the same criterion on the dataset's stored views finds less."""
     ds = nbv.dataset.open(json.loads((run / "results.json").read_text())["datasets"][0]["path"])
@@ -231,6 +233,7 @@ def test_the_export_layout_reads_back_the_dataset(run, exported):
     assert "<class>/<model>/model.mat" in readme and "(1, 1, 1)" in readme
 
 
+@pytest.mark.slow
 def test_a_dataset_that_kept_every_point_exports_its_stored_points_in_ascii(tmp_path):
     summary = generate(small_settings(tmp_path, points_per_view=0, eps=EPS))
     sources = from_dataset(summary.shard_file, viewspaces=("permuted",), limit=2)
@@ -341,6 +344,7 @@ def test_pcd_files_read_back_exactly_in_every_format(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a32.pcd", "a64.pcd", "b32.pcd"]
 
 
+@pytest.mark.slow
 def test_subsampled_views_of_a_blender_dataset_are_refused_in_one_line(tmp_path):
     """Neither stored full views nor a reproducible renderer: the line says how to get them."""
     summary = generate(small_settings(tmp_path, eps=EPS))
@@ -417,6 +421,7 @@ def test_bad_sources_are_refused_by_file_before_anything_is_written(run, tmp_pat
         (["colour=red"], "nbv.export: colour: unknown key; allowed: eval_run, data_dir"),
     ],
 )
+@pytest.mark.slow
 def test_a_refused_export_says_why_in_one_line_and_leaves_no_folder(tmp_path, args, line):
     done = cli(tmp_path, *args, "out_dir=export")
     assert done.returncode == 2, done.stderr
@@ -424,6 +429,7 @@ def test_a_refused_export_says_why_in_one_line_and_leaves_no_folder(tmp_path, ar
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_an_export_is_not_written_over_another(run, tmp_path):
     data = json.loads((run / "results.json").read_text())["datasets"][0]["path"]
     first = cli(tmp_path, f"data_dir={data}", "limit=1", "out_dir=export", "progress=false")

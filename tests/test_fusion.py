@@ -113,6 +113,7 @@ def test_inputs_of_the_wrong_shape_are_refused(scene: Scene):
 # --- the fused sphere ----------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_fused_sphere_is_within_a_bound_from_the_voxel_of_the_true_surface(scene, fused):
     """Chamfer distance below ``voxel / 2 + 0.5 sqrt(area / n)``.
 
@@ -165,6 +166,7 @@ def test_poses_in_another_convention_do_not_give_the_sphere(scene, wrong):
     assert on_sphere < 0.05 * max(len(vertices), 1)
 
 
+@pytest.mark.slow
 def test_a_block_of_missing_depth_does_not_carve_what_other_views_saw(scene):
     """View 0 loses a 60 x 60 block over the sphere (depth 0, then NaN): every point of the
     sphere in that block that another view saw within 60 degrees of its normal stays within a
@@ -235,6 +237,7 @@ def test_views_of_two_cameras_fuse_with_one_intrinsics_each(scene):
     assert abs(fit_sphere(vertices)[1] - RADIUS) < VOXEL
 
 
+@pytest.mark.slow
 def test_max_depth_leaves_a_wall_behind_the_object_out():
     """Cameras in front of a sphere with a wall 1 behind its centre: without a range limit the
     wall is fused too; with ``max_depth`` 2.0 (the sphere's seen side lies within 1.5 of each

@@ -27,6 +27,7 @@ HEAVY = ("h5py", "torch", "open3d", "bpy")
         "nbv.eval.protocol",
     ],
 )
+@pytest.mark.slow
 def test_algorithm_modules_load_no_heavy_dependency(module):
     code = f"import sys, {module}\nprint(','.join(m for m in {HEAVY!r} if m in sys.modules))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -47,6 +48,7 @@ def test_the_dataset_entry_point_still_opens_lazily():
 @pytest.mark.parametrize(
     "module", ["nbv.models.config", "train.config", "nbv.eval.config", "nbv.dataset.config"]
 )
+@pytest.mark.slow
 def test_settings_are_checked_without_torch(module):
     """A refused run answers before torch loads (seconds on a small machine)."""
     code = f"import sys, {module}\nprint('torch' in sys.modules)"

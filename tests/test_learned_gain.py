@@ -11,9 +11,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from datagen import SMALL_CAMERA, make_train_dataset
-from test_occupancy import INTO_POCKET, _cup, pocket_scene
-from test_policies import VOLUMETRIC, make_tiny_dataset
+from datagen import SMALL_CAMERA, VOLUMETRIC, make_tiny_dataset, make_train_dataset
+from shapes import INTO_POCKET, cup, pocket_scene
 
 import nbv.dataset
 from nbv.bench.volumetric import decision, numpy_ray_features, plain_decision
@@ -197,6 +196,7 @@ def test_captured_share_of_the_best_gain():
     assert captured(scores, gains, pad) == pytest.approx((0.0 + 0.3) / (0.5 + 0.3))
 
 
+@pytest.mark.slow
 def test_a_real_training_run_is_reproducible_and_keeps_its_decisions(tmp_path_factory):
     data = make_train_dataset(tmp_path_factory.mktemp("scorer_data"))
     out = tmp_path_factory.mktemp("scorer_run")
@@ -258,11 +258,11 @@ def test_the_benchmark_references_compute_the_same_features_and_decision():
         numpy_ray_features(occupancy.log_odds, rows, near, occupancy.settings.n),
         ray_features(occupancy, rows),
     )
-    cup = _cup()
+    mesh = cup()
     camera = Intrinsics.centred(96, 72, 72.0)
     directions = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, 0, 1], [1, 1, 1.0], [0, -1, 1]])
     poses = viewspace_poses(directions / np.linalg.norm(directions, axis=1, keepdims=True))
-    depth = render_raycast(cup.vertices, cup.faces, poses, camera)
+    depth = render_raycast(mesh.vertices, mesh.faces, poses, camera)
     views = [(v, backproject(depth[v], camera, poses[v])) for v in (1, 3)]
     settings = VolumetricSettings(resolution=0.04, block=4)
     scorer = load_scorer(SHIPPED_SCORER)

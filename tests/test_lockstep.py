@@ -10,8 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_eval import tiny_settings
-from test_policies import make_tiny_dataset, save_tiny_checkpoint
+from datagen import make_tiny_dataset
+from evalgen import tiny_settings
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.assets.weights import shipped_weights
@@ -71,6 +72,7 @@ def _policies(ctx: MethodContext, method: str, check: str | None = None, sigma: 
 
 
 @pytest.mark.parametrize("method", SHIPPED)
+@pytest.mark.slow
 def test_every_network_picks_the_views_of_one_at_a_time_inference(model, shipped_fp32, method):
     batched = run_lockstep(model, _policies(shipped_fp32, method))
     single = [run_episode(model, s.viewspace, s.start, s.policy)
@@ -87,6 +89,7 @@ def test_every_network_picks_the_views_of_one_at_a_time_inference(model, shipped
     ("check", "sigma"),
     [("random_cloud", 0.0), ("permuted_state", 0.0), ("position_noise", 0.005)],
 )
+@pytest.mark.slow
 def test_disturbed_networks_draw_and_pick_as_alone(model, shipped_fp32, check, sigma):
     for method in ("pcnbv", "pcnbv_sph"):
         batched = run_lockstep(model, _policies(shipped_fp32, method, check, sigma))
@@ -95,6 +98,7 @@ def test_disturbed_networks_draw_and_pick_as_alone(model, shipped_fp32, check, s
         assert [e.views for e in batched] == [e.views for e in single]
 
 
+@pytest.mark.slow
 def test_mixed_policies_and_one_shot_plans_run_as_alone(model, shipped_fp32):
     """Batched networks beside policies that decide alone (random, a one-shot planner, ig) and
     a two-stage planner (its network's picks batched, its plan made alone)."""
@@ -120,6 +124,7 @@ def test_a_bad_start_or_a_visited_pick_is_refused(model, shipped_fp32):
         run_lockstep(model, [EpisodeSpec("original", 0, lambda state: 0)])
 
 
+@pytest.mark.slow
 def test_the_evaluator_records_the_same_episodes_batched_or_not(tmp_path):
     tiny = {
         "data": make_tiny_dataset(tmp_path / "data"),

@@ -358,6 +358,7 @@ def plan_in_process(mesh: Path, out: Path, *overrides: str) -> dict:
 @pytest.mark.parametrize(
     "name", ["flat_square.ply", "one_triangle.obj", "zero_area_faces.obj", "huge_coordinates.obj"]
 )
+@pytest.mark.slow
 def test_degenerate_but_valid_meshes_are_planned(corpus, tmp_path, name):
     record = plan_in_process(corpus / name, tmp_path / "out")
     assert record["visited"] == [0] and len(record["chosen"]) == 2
@@ -374,6 +375,7 @@ def test_a_flat_mesh_seen_edge_on_plans_with_an_empty_cloud_and_says_so(corpus, 
     assert (tmp_path / "out" / "cloud.ply").read_bytes() == EMPTY_CLOUD_PLY
 
 
+@pytest.mark.slow
 def test_the_dataset_generator_makes_every_readable_file_and_records_the_rest(corpus, tmp_path):
     from nbv.dataset.generate import generate
     from nbv.dataset.generation import GenerationSettings
@@ -410,6 +412,7 @@ def assert_refused(proc: subprocess.CompletedProcess, prefix: str) -> None:
 
 
 @pytest.mark.parametrize("name", ["garbage.glb", "missing_bin.gltf"])
+@pytest.mark.slow
 def test_nbv_plan_refuses_a_bad_file_in_one_line_and_leaves_nothing(corpus, tmp_path, name):
     proc = run_cli("nbv.plan", f"mesh={corpus / name}", "camera=small", "out_dir=out",
                    cwd=tmp_path)  # fmt: skip
@@ -417,6 +420,7 @@ def test_nbv_plan_refuses_a_bad_file_in_one_line_and_leaves_nothing(corpus, tmp_
     assert not list(tmp_path.iterdir())
 
 
+@pytest.mark.slow
 def test_nbv_plan_refuses_a_mesh_no_view_shows(tmp_path):
     # Two unit triangles 10,000 apart: once the whole fits the views, each is below a pixel.
     far = tmp_path / "far.obj"
@@ -432,6 +436,7 @@ def test_nbv_plan_refuses_a_mesh_no_view_shows(tmp_path):
     assert log[-1].endswith("nothing to plan from")
 
 
+@pytest.mark.slow
 def test_nbv_plan_writes_a_valid_empty_cloud_for_a_triangle_seen_edge_on(corpus, tmp_path):
     proc = run_cli("nbv.plan", f"mesh={corpus / 'one_triangle.obj'}", "camera=small",
                    "method=random", "page=false", "out_dir=out", cwd=tmp_path)  # fmt: skip
@@ -451,6 +456,7 @@ def mixed(corpus, tmp_path_factory) -> Path:
     return folder
 
 
+@pytest.mark.slow
 def test_nbv_dataset_makes_the_good_file_and_names_each_bad_one_on_a_line(mixed, tmp_path):
     proc = run_cli("nbv.dataset", "source=folder", f"root={mixed}", "camera=small",
                    "n_gt=500", "viewspaces=[original]", "out_dir=data", "progress=false",
@@ -466,6 +472,7 @@ def test_nbv_dataset_makes_the_good_file_and_names_each_bad_one_on_a_line(mixed,
         assert f"{mixed / name}: " in line
 
 
+@pytest.mark.slow
 def test_nbv_eval_prepares_the_good_file_and_refuses_a_folder_of_bad_ones(mixed, tmp_path):
     cheap = ["dataset=meshes", "methods=[random]", "viewspace=[original]", "start_views=[0]",
              "disturb.checks=[]", "random_repeats=1", "n_views=3", "plots=false",
@@ -483,6 +490,7 @@ def test_nbv_eval_prepares_the_good_file_and_refuses_a_folder_of_bad_ones(mixed,
     assert_refused(proc, f"nbv.eval: mesh_dir='{bad}': no mesh could be prepared (garbage: {bad}")
 
 
+@pytest.mark.slow
 def test_nbv_dataset_refuses_a_folder_of_bad_files_in_one_line(mixed, tmp_path):
     bad = tmp_path / "bad"
     bad.mkdir()

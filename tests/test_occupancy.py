@@ -6,13 +6,13 @@ import numpy as np
 import octomap
 import pytest
 import trimesh
+from shapes import INTO_POCKET, cup, pocket_scene
 
 from nbv.bench.volumetric import decision, numpy_ray_gains, numpy_traverse, plain_decision
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.viewspace import spread_views
 from nbv.planning.information_gain import (
     METRICS,
-    candidate_voxels,
     frontier,
     ray_gains,
     view_gains,
@@ -218,50 +218,6 @@ def test_a_sensed_view_carves_only_what_its_user_declared():
     assert z.min() >= -grid.settings.resolution and grid.centres()[free][:, 2].min() < -0.5
 
 
-def _cup() -> trimesh.Trimesh:
-    """A 0.7 x 0.5 x 0.5 box with a 0.3 x 0.3 pocket 0.6 deep, open towards +x."""
-    walls = [
-        ((-0.35, -0.25), (-0.25, 0.25), (-0.25, 0.25)),  # the pocket's bottom
-        ((-0.25, 0.35), (-0.25, -0.15), (-0.25, 0.25)),
-        ((-0.25, 0.35), (0.15, 0.25), (-0.25, 0.25)),
-        ((-0.25, 0.35), (-0.15, 0.15), (-0.25, -0.15)),
-        ((-0.25, 0.35), (-0.15, 0.15), (0.15, 0.25)),
-    ]
-    boxes = []
-    for bounds in walls:
-        lo, hi = np.array(bounds).T
-        boxes.append(trimesh.creation.box(bounds=np.stack([lo, hi])))
-    return trimesh.util.concatenate(boxes)
-
-
-#: The view of :func:`pocket_scene` that looks into the pocket.
-INTO_POCKET = 9
-
-
-def pocket_scene():
-    """The cup seen from 9 views all around but never into its pocket (view ``INTO_POCKET``
-    does): ``(directions (V, 3), poses, camera, captured (V,) bool, candidate voxels, map)``
-    at the default ig settings."""
-    cup = _cup()
-    camera = Intrinsics.centred(96, 72, 72.0)
-    oblique = [(np.cos(a), np.sin(a) * np.cos(b), np.sin(a) * np.sin(b))
-               for a in [np.radians(40)] for b in np.radians([0, 90, 180, 270])]  # fmt: skip
-    diagonal = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
-    directions = np.array([(-1, 0, 0), (0, 1, 0), (0, -1, 0), (0, 0, 1), (0, 0, -1), *oblique,
-                           (1, 0, 0), *diagonal], dtype=float)  # fmt: skip
-    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    poses = viewspace_poses(directions)
-    depth = render_raycast(cup.vertices, cup.faces, poses, camera)
-    captured = np.arange(len(directions)) < INTO_POCKET
-    occupancy = OccupancyMap(VolumetricSettings().occupancy())
-    for v in np.flatnonzero(captured):
-        points = backproject(depth[v], camera, poses[v])
-        misses = background_directions(points, poses[v], camera, block=4)
-        occupancy.insert_view(poses[v][:3, 3], points, misses)
-    voxels = candidate_voxels(poses, camera, 16, occupancy.settings)
-    return directions, poses, camera, captured, voxels, occupancy
-
-
 @pytest.mark.parametrize("metric", ["unobserved", "rear_side_voxel", "rear_side_entropy"])
 def test_information_gain_looks_into_the_pocket_where_spread_does_not(metric):
     # (entropy does not: it prefers views through lightly observed free space, whose voxels
@@ -273,10 +229,10 @@ def test_information_gain_looks_into_the_pocket_where_spread_does_not(metric):
 
 
 def test_the_plain_decision_of_the_benchmark_is_the_planners():
-    cup = _cup()
+    mesh = cup()
     camera = Intrinsics.centred(96, 72, 72.0)
     poses = viewspace_poses(np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, 0, 1], [1, 1, 1.0]]))
-    depth = render_raycast(cup.vertices, cup.faces, poses, camera)
+    depth = render_raycast(mesh.vertices, mesh.faces, poses, camera)
     views = [(v, backproject(depth[v], camera, poses[v])) for v in (1, 3)]
     settings = VolumetricSettings(resolution=0.04, block=4)
     assert decision(views, poses, camera, settings) == plain_decision(

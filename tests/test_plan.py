@@ -93,6 +93,7 @@ def test_methods_that_read_the_ground_truth_are_refused_with_the_allowed_list(bo
         (["captures=BOX", "save_captures=2"], "save_captures needs mesh="),
     ],
 )
+@pytest.mark.slow
 def test_bad_settings_name_the_key(box, tmp_path, overrides, message):
     cfg = composed([o.replace("BOX", str(box)) for o in overrides] + [f"out_dir={tmp_path}"])
     with pytest.raises(ConfigError, match=message):
@@ -173,6 +174,7 @@ def episode(box, tmp_path_factory):
     return cwd / "run", proc
 
 
+@pytest.mark.slow
 def test_a_mesh_episode_writes_the_plan_the_cloud_the_picture_and_the_page(episode):
     out, proc = episode
     record = json.loads((out / "plan.json").read_text())
@@ -205,6 +207,7 @@ def test_a_mesh_episode_writes_the_plan_the_cloud_the_picture_and_the_page(episo
     assert not list(out.glob("*.tmp*"))
 
 
+@pytest.mark.slow
 def test_captures_saved_from_the_episode_plan_the_episode_next_view(episode):
     out, _ = episode
     record = json.loads((out / "plan.json").read_text())
@@ -220,6 +223,7 @@ def test_captures_saved_from_the_episode_plan_the_episode_next_view(episode):
     assert again["predicted_gains"][0] > 0 and again["gain_unit"].startswith("information gain")
 
 
+@pytest.mark.slow
 def test_a_bad_capture_folder_is_refused_in_one_line_and_leaves_nothing(episode, tmp_path):
     out, _ = episode
     folder = tmp_path / "caps"
@@ -241,10 +245,11 @@ def test_a_bad_capture_folder_is_refused_in_one_line_and_leaves_nothing(episode,
 
 @pytest.mark.parametrize("method", ["hull_sco", "ig"])
 def test_the_bench_decision_is_the_plan_from_the_same_capture_file(box, tmp_path, method):
+    from capturegen import plan_captures
+
     from nbv.assets.meshes import load_mesh, normalise
     from nbv.bench.plan import decide
     from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
-    from nbv.plan.next_view import plan_captures
     from nbv.planning.settings import PlannerSettings
     from nbv.render.raycast import render_raycast
 
@@ -284,6 +289,7 @@ def test_the_example_mesh_is_the_first_synthetic_model_of_its_category(tmp_path)
     assert not (tmp_path / "x.obj").exists()
 
 
+@pytest.mark.slow
 def test_the_example_command_writes_the_mesh_or_refuses_in_one_line(tmp_path):
     def example(*args: str) -> subprocess.CompletedProcess:
         env = dict(os.environ, PYTHONPATH=str(ROOT))

@@ -12,93 +12,26 @@ from pathlib import Path
 import numpy as np
 import open3d as o3d
 import pytest
+from capturegen import CAMERA, EPS, START, capture_model, episode_views, plan_captures, write_folder
 
-import nbv.dataset
-from nbv.assets.weights import shipped_weights
-from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
-from nbv.geometry.camera import Intrinsics, opencv_to_blender, project
-from nbv.geometry.scores import DEFAULT_EPS
+from nbv.geometry.camera import Intrinsics, opencv_to_blender
 from nbv.plan.captures import CaptureError, check_rigid, read_captures, write_captures
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.method import policy_rng
-from nbv.plan.next_view import plan_captures
 from nbv.plan.object_estimate import EstimateSettings, estimate_object
 from nbv.planning.information_gain import view_gains
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
-from nbv.policies.conditioned_network import ConditionedPolicy
-from nbv.policies.episode import EpisodeState, run_episode
-from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
-
-CAMERA = Intrinsics.centred(64, 48, 48.0)
-EPS = DEFAULT_EPS
-START = 3
-#: A similarity of the world: captures scaled by SCALE and moved by SHIFT.
-SCALE, SHIFT = 3.0, np.array([1.5, -2.0, 0.7])
+from nbv.policies.episode import EpisodeState
+from nbv.policies.registry import METHODS, MethodContext
 
 
 @pytest.fixture(scope="module")
 def model(tmp_path_factory):
-    out = tmp_path_factory.mktemp("dataset")
-    summary = generate(
-        GenerationSettings(
-            out_dir=out, synthetic=Synthetic({"train": 0, "valid": 0, "test": 0, "unseen": 1}),
-            limit=1, intrinsics=CAMERA, n_gt=1000, eps=EPS, points_per_view=200,
-            renderer=Renderer(backend="raycast"), progress=False,
-        )
-    )  # fmt: skip
-    assert summary.produced == 1
-    ds = nbv.dataset.open(out)
-    return ds.model(ds.keys()[0], viewspaces=("original",))
+    return capture_model(tmp_path_factory.mktemp("dataset"))
 
 
-def episode_views(model, method: str) -> list[int]:
-    """The evaluator's episode: the registry's policy (a viewspace-conditioned network on the
-    shipped weights, as the plan's default), the plan's generator."""
-    networks = {}
-    if NETWORK_INPUTS.get(method) == "directions":
-        networks[method] = ConditionedPolicy.from_checkpoint(shipped_weights(method))
-    ctx = MethodContext(networks, PlannerSettings(), CAMERA, EPS, 10, VolumetricSettings())
-    policy = METHODS[method].build(ctx, policy_rng(0, method))
-    return run_episode(model, "original", START, policy, 10).views
-
-
-def depth_image(points: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """The sparse planar depth image whose back-projection gives ``points`` again (each stored
-    point is a pixel centre's ray hit): (H, W) float64, inf elsewhere."""
-    uv, z = project(points, CAMERA, pose)
-    u, v = np.rint(uv).astype(int).T
-    assert np.abs(uv - np.stack([u, v], axis=1)).max() < 1e-3
-    depth = np.full((CAMERA.height, CAMERA.width), np.inf)
-    depth[v, u] = z
-    return depth
-
-
-def write_folder(folder: Path, model, views: list[int], kind: str, scale=1.0, shift=None):
-    """The dataset's stored views as a capture folder: PLY clouds or depth NPY images, with
-    their poses (moved by ``scale`` and ``shift``)."""
-    shift = np.zeros(3) if shift is None else shift
-    folder.mkdir(parents=True)
-    record = model.views["original"]
-    entries = []
-    for i, v in enumerate(views):
-        points = record.view_points(v).astype(np.float64)
-        pose = record.poses[v].copy()
-        if kind == "ply":
-            name = f"view_{i}.ply"
-            cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points * scale + shift))
-            assert o3d.io.write_point_cloud(str(folder / name), cloud)
-        else:
-            name = f"view_{i}.npy"
-            np.save(folder / name, depth_image(points, pose) * scale)
-        pose[:3, 3] = pose[:3, 3] * scale + shift
-        entries.append({"file": name, "pose": pose.tolist()})
-    k = CAMERA
-    # Rendered views: their background is empty space, as the dataset's episode takes it.
-    spec = {"intrinsics": dict(width=k.width, height=k.height, fx=k.fx, fy=k.fy, cx=k.cx,
-                               cy=k.cy), "no_return": "free", "views": entries}  # fmt: skip
-    (folder / "views.json").write_text(json.dumps(spec))
-    return folder
+#: A similarity of the world: captures scaled by SCALE and moved by SHIFT.
+SCALE, SHIFT = 3.0, np.array([1.5, -2.0, 0.7])
 
 
 def plan(folder: Path, method: str, center=(0.0, 0.0, 0.0), radius=0.5):

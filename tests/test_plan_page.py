@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import _in_ci
+from needs import in_ci
 from PIL import Image
 from scipy.spatial import ConvexHull
 
@@ -160,7 +160,7 @@ def test_page_is_self_contained_and_under_10_mb(tmp_path):
 def chromium() -> str:
     """The Chromium binary; installed in CI when missing, else the tests skip."""
     binary = shutil.which("chromium")
-    if binary is None and not _in_ci():
+    if binary is None and not in_ci():
         pytest.skip("Chromium is missing; bash scripts/apt_ensure.sh tests chromium (as root)")
     if binary is None:
         install = subprocess.run(
@@ -245,6 +245,7 @@ def canvas_drawn(run: BrowserRun) -> bool:
     return run.ready_ms is not None and min(counts) >= 50 and background < 0.9 * h * w
 
 
+@pytest.mark.slow
 def test_page_renders_in_chromium_from_disk_without_the_network(chromium, tmp_path):
     page = tmp_path / "plan.html"
     write_plan_page(page, **scene(), chosen=[3, 7, 1], visited=[0, 3], title="blob")

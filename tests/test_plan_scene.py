@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import open3d as o3d
 import pytest
+from capturegen import plan_captures
 from scipy.spatial import ConvexHull
 
 from nbv.assets.synthetic.catalogue import make_model
@@ -16,7 +17,6 @@ from nbv.plan.candidates import REASONS, CandidateSettings, limit_candidates
 from nbv.plan.captures import read_captures, write_captures
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.frame import ObjectFrame
-from nbv.plan.next_view import plan_captures
 from nbv.plan.object_estimate import Plane
 from nbv.plan.placement import sensed_misses
 from nbv.planning.occupancy import FREE, OCCUPIED, UNKNOWN

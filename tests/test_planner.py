@@ -13,13 +13,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_plan_captures import (
+from capturegen import (
     CAMERA,
     EPS,
     START,
+    capture_model,
     depth_image,
     episode_views,
-    model,  # noqa: F401  (the fixture: one synthetic dataset model)
+    plan_captures,
     write_folder,
 )
 
@@ -29,7 +30,6 @@ from nbv.geometry.camera import Intrinsics, opencv_to_blender
 from nbv.plan import NextView, Planner
 from nbv.plan.captures import CaptureError
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
-from nbv.plan.next_view import plan_captures
 from nbv.render.scene import SceneSettings, table_scene
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,12 +41,17 @@ TABLE_CAMERA = Intrinsics.centred(320, 240, 238.0)
 HEMISPHERE = {"kind": "hemisphere", "n": 40, "up": "z", "radius": 0.45}
 
 
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    return capture_model(tmp_path_factory.mktemp("dataset"))
+
+
 def dataset_planner(method: str, **kw) -> Planner:
     return Planner(method=method, camera=CAMERA, eps=EPS, points_per_view=0, n_views=10,
                    **UNIT, **kw)  # fmt: skip
 
 
-def add_dataset_view(planner: Planner, model, v: int, kind: str = "points") -> None:  # noqa: F811
+def add_dataset_view(planner: Planner, model, v: int, kind: str = "points") -> None:
     """View ``v`` of the dataset model, as its stored points or their sparse depth image (a
     rendered view: its background is free)."""
     record = model.views["original"]
@@ -59,7 +64,7 @@ def add_dataset_view(planner: Planner, model, v: int, kind: str = "points") -> N
 
 @pytest.mark.parametrize("method", ["ig", "ig_learned", "vcnbv_map"])
 @pytest.mark.parametrize("kind", ["points", "depth"])
-def test_a_robot_loop_takes_the_views_of_the_evaluators_episode(model, method, kind):  # noqa: F811
+def test_a_robot_loop_takes_the_views_of_the_evaluators_episode(model, method, kind):
     views = episode_views(model, method)
     planner = dataset_planner(method)
     add_dataset_view(planner, model, START, kind)
@@ -70,7 +75,7 @@ def test_a_robot_loop_takes_the_views_of_the_evaluators_episode(model, method, k
     assert planner.result.visited == views[:-1]
 
 
-def test_a_one_shot_plan_is_the_episodes(model):  # noqa: F811
+def test_a_one_shot_plan_is_the_episodes(model):
     views = episode_views(model, "hull_sco")
     planner = dataset_planner("hull_sco")
     add_dataset_view(planner, model, START)
@@ -85,10 +90,10 @@ def test_a_one_shot_plan_is_the_episodes(model):  # noqa: F811
 
 @pytest.mark.parametrize(("method", "decisions"), [("ig", 4), ("ig_learned", 4), ("hull_sco", 1)])
 def test_the_planner_decides_as_the_command_on_the_same_captures(
-    model,  # noqa: F811
+    model,
     tmp_path,
     method,
-    decisions,  # noqa: F811
+    decisions,
 ):
     """At every decision for the methods whose decision reads only the views; a one-shot
     planner's later plans draw their hull samples on from the first's generator (the command's
@@ -107,7 +112,7 @@ def test_the_planner_decides_as_the_command_on_the_same_captures(
         assert mine.gains == command.gains
 
 
-def test_the_returned_pose_is_the_candidates_in_both_axes(model):  # noqa: F811
+def test_the_returned_pose_is_the_candidates_in_both_axes(model):
     planner = dataset_planner("ig")
     add_dataset_view(planner, model, START)
     step = planner.next_view()
@@ -120,7 +125,7 @@ def test_the_returned_pose_is_the_candidates_in_both_axes(model):  # noqa: F811
     assert step.gain_unit == "information gain (unobserved voxels)"
 
 
-def test_a_depth_image_and_its_points_are_the_same_view(model):  # noqa: F811
+def test_a_depth_image_and_its_points_are_the_same_view(model):
     """A depth view declared free and the same pixels as points declared free: the same points
     (to the float32 rounding of the stored ones), the same map (each block without a stored
     point is a miss either way) and the same choices."""
@@ -269,6 +274,7 @@ class FakeRobot:
         self.pose = pose
 
 
+@pytest.mark.slow
 def test_the_robot_loop_of_the_docs_runs(cabinet, tmp_path, monkeypatch):
     code = snippet("### A robot loop")
     assert len(code.strip().splitlines()) <= 16
@@ -286,6 +292,7 @@ def test_the_robot_loop_of_the_docs_runs(cabinet, tmp_path, monkeypatch):
 
 
 @pytest.mark.skipif(not SHELF.is_dir(), reason="../shared/captures/shelf_bin is not here")
+@pytest.mark.slow
 def test_the_shelf_bin_example_plans_from_three_views(tmp_path):
     command = snippet("## The shelf bin", "bash").strip()
     args = [a.strip("'") for a in command.split()[3:] if a != "\\"]

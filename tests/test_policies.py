@@ -5,20 +5,18 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
-from datagen import SMALL_CAMERA
+from datagen import SMALL_CAMERA, VOLUMETRIC, make_tiny_dataset
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
-from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.planning.gain_scorer import load_scorer
 from nbv.planning.hull_sampling import convex_hull
 from nbv.planning.planner import plan as sco_plan
-from nbv.planning.planner import plan_sph
-from nbv.planning.settings import PlannerSettings, VolumetricSettings
+from nbv.planning.planner import sph_hull_points
+from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
@@ -29,59 +27,6 @@ from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS, SHIPPED_SCORER, MethodContext
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
-
-#: A PCNBV small enough to run in milliseconds (the sizes of tests/test_train.py).
-TINY_NET = dict(
-    k=4, growth=4, dense_layers=2, blocks=2, first_channels=8, attention_channels=8,
-    conv_channels=[32], fc_channels=[32],
-)  # fmt: skip
-
-
-def make_tiny_dataset(out: Path, models: int = 2) -> Path:
-    """The first ``models`` synthetic models of the unseen categories (split test), ray cast
-    with a 64 x 48 camera, 1000 ground-truth points, 50 stored points a view."""
-    summary = generate(
-        GenerationSettings(
-            out_dir=out,
-            synthetic=Synthetic(counts={"train": 0, "valid": 0, "test": 0, "unseen": 1}),
-            limit=models,
-            intrinsics=SMALL_CAMERA,
-            n_gt=1000,
-            points_per_view=50,
-            renderer=Renderer(backend="raycast"),
-            progress=False,
-        )
-    )
-    assert summary.produced == models
-    return out
-
-
-def save_tiny_checkpoint(
-    path: Path, input: str = "points", seed: int = 0, selection_keys: list[str] | None = None
-) -> Path:
-    """An untrained tiny PCNBV saved the way training saves one (``extra``: input, lmax,
-    eval_points, and the models that chose it); ``input="directions"``: a tiny
-    viewspace-conditioned network the way train.conditioned saves one (``"directions_map"``:
-    one that reads map features)."""
-    import torch
-
-    from nbv.models.checkpoints import save_checkpoint
-    from nbv.models.config import PCNBVConfig
-    from nbv.models.pcnbv import PCNBV
-    from nbv.models.view_conditioned import ConditionedConfig, ViewConditionedNet, save_conditioned
-    from nbv.planning.view_features import FEATURES
-
-    torch.manual_seed(seed)
-    if input.startswith("directions"):
-        width = len(FEATURES) if input == "directions_map" else 0
-        config = ConditionedConfig((8, 16), (8,), 4, (16,), map_features=width)
-        extra = {"eval_points": 64, "selection_keys": selection_keys or []}
-        save_conditioned(path, ViewConditionedNet(config).eval(), extra)
-        return path
-    net = PCNBV(PCNBVConfig(n_views=33, **TINY_NET)).eval()
-    extra = {"input": input, "lmax": 2, "eval_points": 64, "selection_keys": selection_keys or []}
-    save_checkpoint(path, net, extra)
-    return path
 
 
 @pytest.fixture(scope="module")
@@ -106,10 +51,6 @@ def networks(tmp_path_factory):
         for name in ("directions", "directions_map")
     }
     return {**nets, **conditioned}
-
-
-#: The information-gain planner on the small camera: coarse voxels, 4-pixel background blocks.
-VOLUMETRIC = VolumetricSettings(resolution=0.04, columns=8, block=4)
 
 
 def all_policies(networks, seed: int = 0) -> dict:
@@ -167,6 +108,7 @@ def all_policies(networks, seed: int = 0) -> dict:
 
 
 @pytest.mark.parametrize("viewspace", ["original", "permuted"])
+@pytest.mark.slow
 def test_every_policy_gives_a_valid_episode_and_the_oracle_leads_at_view_two(
     model, networks, viewspace
 ):
@@ -299,8 +241,8 @@ def test_sph_planner_plans_on_the_signature(model):
         np.random.default_rng(2), sph=True, settings=lmax2, intrinsics=SMALL_CAMERA
     )
     episode = run_episode(model, "permuted", 1, policy)
-    expected = plan_sph(
-        view.view_points(1),
+    expected = sco_plan(
+        sph_hull_points(view.view_points(1), lmax2.lmax),
         view.poses[:, :3, 3],
         settings=lmax2,
         exclude=[1],
@@ -409,6 +351,7 @@ class _SeesOnlyCaptured:
         return self.inner(dataclasses.replace(state, model=model))
 
 
+@pytest.mark.slow
 def test_policies_other_than_the_oracle_read_only_the_captured_views(model, networks):
     # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
     # it has not captured would pick otherwise on the blinded model.

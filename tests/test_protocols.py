@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from datagen import SMALL_CAMERA
-from test_policies import make_tiny_dataset, save_tiny_checkpoint
+from datagen import SMALL_CAMERA, make_tiny_dataset
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.dataset.generate import generate
@@ -97,6 +97,7 @@ def lacking_run(tmp_path_factory):
     return tmp, data, settings, evaluate(settings)
 
 
+@pytest.mark.slow
 def test_the_evaluation_renders_a_lacking_viewspace_as_the_dataset_would(lacking_run):
     tmp, data, settings, evaluation = lacking_run
     (info,) = evaluation.datasets

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_policies import make_tiny_dataset, save_tiny_checkpoint
+from datagen import make_tiny_dataset
+from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.eval.config import EvalSettings
@@ -77,6 +78,7 @@ def test_the_states_are_the_oracles_episode(tiny):
 
 
 @pytest.mark.parametrize("name", RANKED)
+@pytest.mark.slow
 def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
     ds = nbv.dataset.open(tiny["data"])
     model = ds.model(ds.keys()[1])
@@ -98,6 +100,7 @@ def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
         assert best[picking(state)] == best.max()
 
 
+@pytest.mark.slow
 def test_split_half_reliability_on_gains_with_known_order():
     rng = np.random.default_rng(0)
     # Views 1-3 add 0, 1,000 and 3,000 of 4,000 points to view 0's: any split keeps the order.
@@ -161,6 +164,7 @@ def test_ranking_is_deterministic_and_leaves_out_states_without_ranks(tiny):
     assert sum(r["spearman"]["ig"] is None for r in first) < len(first) / 2
 
 
+@pytest.mark.slow
 def test_the_command_writes_its_tables_and_refuses_methods_without_scores(tiny, tmp_path):
     base = [sys.executable, "-m", "nbv.eval.ranking", f"data_dir={tiny['data']}"]
     out = tmp_path / "rank"

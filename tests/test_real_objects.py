@@ -98,6 +98,7 @@ def test_a_ycb_folder_lists_only_ycb_files(tmp_path):
 
 
 @needs_ycb
+@pytest.mark.slow
 def test_every_ycb_object_reads():
     entries = ycb_catalogue(default_root("ycb"))
     assert len(entries) == 78

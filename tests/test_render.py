@@ -223,6 +223,7 @@ def _children() -> list[int]:
 
 
 @pytest.mark.blender
+@pytest.mark.slow
 def test_blender_agrees_with_raycast_and_streams(tmp_path):
     """One process renders several meshes and views, yielding each mesh as soon as it is done;
     an invalid job is reported without stopping the others; nothing is left in workdir."""
@@ -267,6 +268,7 @@ def test_blender_agrees_with_raycast_and_streams(tmp_path):
 
 
 @pytest.mark.blender
+@pytest.mark.slow
 def test_blender_processes_render_the_same_depth(tmp_path):
     """Two Blender processes of one thread, each replaced after every mesh (chunk=1), give
     every mesh the depth of one process of two threads, bit for bit; a key given twice is
@@ -386,6 +388,7 @@ def _counted_boxes(count: int, taken: list[str]) -> Iterator[RenderJob]:
 
 
 @pytest.mark.blender
+@pytest.mark.slow
 def test_blender_reads_the_jobs_as_it_renders(tmp_path):
     """A process is handed its next mesh as it finishes one: when the first depth arrives, only
     that mesh and the one held ready have been read from the jobs."""
@@ -399,6 +402,7 @@ def test_blender_reads_the_jobs_as_it_renders(tmp_path):
 
 
 @pytest.mark.blender
+@pytest.mark.slow
 def test_blender_processes_wait_for_a_slow_consumer(tmp_path):
     """Two processes whose consumer lags stop asking for meshes: at most 2 queued results a
     process, and each holds one rendered and one waiting mesh, so 9 of 20 are read at most."""
@@ -418,6 +422,7 @@ def _script_job(tmp_path: Path, entries: list[dict]) -> Path:
 
 
 @pytest.mark.blender
+@pytest.mark.slow
 def test_blender_script_protocol(tmp_path):
     """Missing and corrupt mesh files fail alone; a bad job file is fatal."""
     box = _box_at_x()

@@ -57,6 +57,7 @@ def dataset_dir(tmp_path_factory):
     return tmp / "out"
 
 
+@pytest.mark.slow
 def test_targets_equal_brute_force_gains(dataset_dir):
     ds = nbv.dataset.open(dataset_dir)
     model = ds[ds.keys()[0]]
@@ -100,6 +101,7 @@ def test_targets_equal_brute_force_gains(dataset_dir):
         assert dist.max() < 1e-6
 
 
+@pytest.mark.slow
 def test_samples_file_round_trip_and_staleness(dataset_dir):
     shard = dataset_dir / "shard-00000-of-00001.h5"
     settings = SampleSettings(trajectories=2, steps=3, n_points=32, lmax=1, seed=0)

@@ -322,6 +322,7 @@ def _views_of_a_sphere(rng: np.random.Generator, n_views: int = 12) -> list[np.n
     return [pts[pts @ d > 0.6] for d in dirs]
 
 
+@pytest.mark.slow
 def test_union_hulls_equal_the_hull_of_the_merged_views():
     rng = np.random.default_rng(4)
     views = _views_of_a_sphere(rng)

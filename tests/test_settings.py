@@ -3,6 +3,7 @@ range checks (nbv.config.settings)."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -12,6 +13,7 @@ from omegaconf import OmegaConf
 
 from nbv.config.schema import ConfigError
 from nbv.config.settings import as_config, build, check_ranges, schema, setting
+from nbv.utils.fields import at_least, between, one_of, or_null, positive
 
 
 @dataclass(frozen=True)
@@ -160,3 +162,41 @@ def test_a_group_default_holding_a_field_with_its_own_yaml_form():
 def test_a_converter_message_that_names_its_key_is_not_named_twice():
     with pytest.raises(ConfigError, match=r"^names=5: must be a list of names$"):
         build(HoldsCameraGroup, {"names": 5})
+
+
+@pytest.mark.parametrize(
+    ("allows", "words", "yes", "no"),
+    [
+        (at_least(1), "an integer >= 1", [1, 7], [0, -3]),
+        (at_least(0, "a distance"), "a distance >= 0", [0, 0.5], [-1e-9]),
+        (at_least(0, note="0 = all"), "an integer >= 0 (0 = all)", [0, 4], [-1]),
+        (positive(), "a positive number", [1e-9, 3], [0, -1]),
+        (positive("distance"), "a positive distance", [0.1], [0.0]),
+        (between(0, 1), "in [0, 1]", [0, 0.5, 1], [-0.1, 1.1]),
+        (between(0.5, 1, "()"), "in (0.5, 1)", [0.6, 0.99], [0.5, 1]),
+        (between(0, 0.5, "(]"), "in (0, 0.5]", [0.5, 0.1], [0, 0.6]),
+        (between(-90, 90, "[)"), "in [-90, 90)", [-90, 0], [90, -91]),
+        (one_of(("a", "b"), " (x=...)"), "one of a, b (x=...)", ["a", "b"], ["c", None]),
+        (or_null(at_least(1)), "null or an integer >= 1", [None, 1], [0]),
+    ],
+)
+def test_an_allowed_range_is_declared_once_as_check_and_words(allows, words, yes, no):
+    assert allows.words == words
+    assert all(allows(v) for v in yes) and not any(allows(v) for v in no)
+
+    @dataclass(frozen=True)
+    class One:
+        value: Any = setting(yes[0], allows=allows)
+
+        def __post_init__(self) -> None:
+            check_ranges(self)
+
+    with pytest.raises(ConfigError, match=rf"^value={no[0]!r}: must be {re.escape(words)}$"):
+        One(no[0])
+
+
+def test_a_setting_takes_allows_or_check_and_allowed_not_both():
+    with pytest.raises(TypeError, match="not both"):
+        setting(1, allows=at_least(1), check=lambda v: v > 0, allowed="positive")
+    with pytest.raises(ValueError, match="closed="):
+        between(0, 1, "[[")

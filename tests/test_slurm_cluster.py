@@ -50,6 +50,7 @@ def test_node_matches_machine(slurm_cluster):
     assert fields["NodeAddr"] == "127.0.0.1"
 
 
+@pytest.mark.slow
 def test_sbatch_array_runs_both_tasks(slurm_cluster, tmp_path):
     """`sbatch --array=0-1 --wait` runs tasks 0 and 1 of one array, each seeing the task count."""
     script = tmp_path / "task.sh"
@@ -77,6 +78,7 @@ def test_sbatch_array_runs_both_tasks(slurm_cluster, tmp_path):
     ]
 
 
+@pytest.mark.slow
 def test_hydra_multirun_is_one_array(slurm_cluster, tmp_path):
     """A hydra sweep x=0,1 through conf/hydra/launcher/slurm.yaml (shrunk by slurm_test) runs as
     tasks 0 and 1 of one SLURM array, in sweep order, with the launcher's resources."""

@@ -68,6 +68,7 @@ def _views(mesh: trimesh.Trimesh, gt: np.ndarray, poses, camera):
     return view_data(depth, poses, camera, gt, 0.03, 0, np.random.default_rng(0))
 
 
+@pytest.mark.slow
 def test_augmented_sample_equals_the_sample_of_the_mapped_object():
     """An object without symmetry, rendered from the original views; the same object mapped by
     each symmetry, rendered again: its per-view gains are the original's, permuted."""

@@ -90,6 +90,7 @@ def test_same_seed_same_arrays_and_other_index_or_seed_differs():
     np.testing.assert_array_equal(a, c)
 
 
+@pytest.mark.slow
 def test_identical_arrays_in_another_process_with_another_hash_seed():
     code = (
         "import hashlib; from nbv.assets.synthetic import SyntheticEntry, build; "
@@ -113,6 +114,7 @@ def test_model_rng_rejects_bad_input():
 
 
 @pytest.mark.parametrize("category", CATEGORIES)
+@pytest.mark.slow
 def test_shapes_vary_within_a_category(category):
     ext = np.array([_extents(build(_entry(category, i), 0)[0]) for i in range(6)])
     # Every pair of models differs in its proportions.
@@ -228,6 +230,7 @@ def test_preview_writes_the_grid(tmp_path):
         preview(tmp_path / "x.png", per_category=0)
 
 
+@pytest.mark.slow
 def test_command_line(tmp_path):
     """``python -m nbv.synthetic``: the options are keys; a bad one refuses the run (status 2)."""
     path = tmp_path / "cli.png"

@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from datagen import TINY_NET, make_train_dataset
-from test_policies import make_tiny_dataset
+from datagen import make_tiny_dataset, make_train_dataset
+from tiny_nets import TINY_NET
 
 import nbv.dataset
 from nbv.dataset.samples import SampleSet, SampleSettings, load_samples, model_samples
@@ -100,6 +100,7 @@ def test_metrics_on_known_values():
     assert best_view_hits(np.array([[99, 5, 0, 1.0]]), target, state) == 0.0
 
 
+@pytest.mark.slow
 def test_training_runs_checkpoints_and_resumes(tiny_dataset, tmp_path):
     settings = tiny_settings(tiny_dataset, tmp_path / "a")
     result = run(settings)
@@ -158,6 +159,7 @@ def test_training_runs_checkpoints_and_resumes(tiny_dataset, tmp_path):
         assert torch.equal(pa, pb), name
 
 
+@pytest.mark.slow
 def test_a_changed_setting_stops_a_resume(tiny_dataset, tmp_path):
     settings = tiny_settings(tiny_dataset, tmp_path, epochs=1)
     run(settings)
@@ -193,6 +195,7 @@ def test_a_changed_setting_stops_a_resume(tiny_dataset, tmp_path):
         assert torch.equal(pa, pb), name
 
 
+@pytest.mark.slow
 def test_select_last_keeps_the_last_epoch(tiny_dataset, tmp_path):
     run(tiny_settings(tiny_dataset, tmp_path, epochs=2, select="last", eval_every=5))
     _, extra = load_checkpoint(tmp_path / "best.pt")
@@ -271,6 +274,7 @@ def test_signature_model_trains(tiny_dataset, tmp_path):
     assert extra["precision"] == resolve_precision("auto", "cpu") in ("fp32", "bf16")
 
 
+@pytest.mark.slow
 def test_bf16_training_is_reproducible_and_recorded(tiny_dataset, tmp_path):
     # Forced bf16 (emulated where the CPU lacks it): two runs give the same weights, and the
     # checkpoint records the precision the evaluator will use.
@@ -283,6 +287,7 @@ def test_bf16_training_is_reproducible_and_recorded(tiny_dataset, tmp_path):
         assert torch.equal(pa, pb), name
 
 
+@pytest.mark.slow
 def test_training_loss_drops_and_bf16_picks_as_fp32(tiny_dataset, tmp_path):
     run(tiny_settings(tiny_dataset, tmp_path, epochs=6, lr=3e-3, eval_every=6))
     losses = [float(r["train_loss"]) for r in read_csv(tmp_path / "metrics.csv")]
@@ -354,6 +359,7 @@ def test_the_training_loss_adds_the_penalty_of_its_scope(tmp_path):
     )
 
 
+@pytest.mark.slow
 def test_missing_samples_and_bad_checkpoints_stop_before_training(tiny_dataset, tmp_path):
     with pytest.raises(ValueError, match="no vig samples|samples"):
         run(tiny_settings(tiny_dataset, tmp_path / "v", score="vig"))
@@ -368,6 +374,7 @@ def test_missing_samples_and_bad_checkpoints_stop_before_training(tiny_dataset, 
         run(tiny_settings(tiny_dataset, other, epochs=2, net={**TINY_NET, "fc_channels": [16]}))
 
 
+@pytest.mark.slow
 def test_cli_trains_and_reports_bad_input(tiny_dataset, tmp_path):
     base = [
         sys.executable,
@@ -407,6 +414,7 @@ def _weights(path: Path) -> list[torch.Tensor]:
     return list(load_checkpoint(path)[0].state_dict().values())
 
 
+@pytest.mark.slow
 def test_loader_workers_give_the_same_weights_for_any_count(tiny_dataset, tmp_path):
     # Batches built ahead by threads, each from its own generator: 1 and 3 workers train alike;
     # the losses and augmentation run through them as well.
@@ -549,6 +557,7 @@ def test_first_models_keeps_every_sample_of_the_first_models_of_a_split():
 FIT_NET = {**TINY_NET, "conv_channels": [256], "fc_channels": [256, 128]}
 
 
+@pytest.mark.slow
 def test_the_network_overfits_a_few_models_with_the_default_loss(tiny_dataset, tmp_path):
     # The fitting check: 80 samples of 2 models, 80 epochs of real training steps with the
     # default loss, rate and penalty. The default loss ranks their views (Spearman >= 0.85 on
@@ -567,6 +576,7 @@ def test_the_network_overfits_a_few_models_with_the_default_loss(tiny_dataset, t
     assert squared[-1]["train_spearman"] < 0.75
 
 
+@pytest.mark.slow
 def test_a_training_run_is_a_learning_curve_point(tiny_dataset, tmp_path):
     """nbv.eval.curve reads a `python -m train` run: the method its input and score play as, and
     its training models (one per training category, less the held-out chair of fold 3)."""
@@ -585,6 +595,7 @@ def test_a_training_run_is_a_learning_curve_point(tiny_dataset, tmp_path):
     assert _learner(tmp_path / "sph")[0] == "pcnbv_sph"
 
 
+@pytest.mark.slow
 def test_a_training_run_plays_its_learning_curve(tiny_dataset, tmp_path):
     """nbv.eval.curve end to end on a `python -m train` run: the run's own checkpoint plays the
     unseen models (it used to be refused: the run's checkpoints were passed twice)."""

@@ -15,6 +15,7 @@ pytestmark = pytest.mark.slurm
 REPO = Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 def test_two_job_sweep_on_slurm_then_summary(slurm_cluster, tmp_path):
     data = make_train_dataset(tmp_path / "data")
     sweep = tmp_path / "sweep"

@@ -64,6 +64,7 @@ from nbv.planning.view_features import FEATURES, unvisited_features
 from nbv.policies.conditioned_network import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.utils.fields import at_least, between, one_of, positive
 from nbv.utils.selection import masked_argmax
 from train.losses import LOSSES, batch_loss
 from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
@@ -78,11 +79,6 @@ VIEWSPACES = ("original", "permuted")
 #: ``net``: the widths of :class:`ConditionedConfig` (each null: its default); the number of map
 #: features follows ``map_features``.
 NetFields = schema_of(ConditionedConfig, "NetFields", optional=True, exclude=("map_features",))
-
-
-def _at_least(default: int, low: int, allowed: str | None = None) -> Any:
-    """An integer field of at least ``low``."""
-    return setting(default, check=lambda v: v >= low, allowed=allowed or f"an integer >= {low}")
 
 
 def _widths(net: Mapping[str, Any]) -> dict[str, Any]:
@@ -135,20 +131,18 @@ class ConditionedSettings:
     dataset: Path
     out_dir: Path
     seed: int = 0
-    epochs: int = _at_least(6, 1)
-    trajectories: int = _at_least(12, 1)
-    steps: int = _at_least(9, 1)
-    candidates: int = _at_least(33, 2)
-    random_step_prob: float = setting(0.3, check=lambda v: 0 <= v <= 1, allowed="in [0, 1]")
-    batch_size: int = _at_least(32, 1)
-    lr: float = setting(1e-3, check=lambda v: v > 0, allowed="a positive number")
-    loss: str = setting(
-        "listwise", check=lambda v: v in LOSSES, allowed=f"one of {', '.join(LOSSES)}"
-    )
+    epochs: int = setting(6, allows=at_least(1))
+    trajectories: int = setting(12, allows=at_least(1))
+    steps: int = setting(9, allows=at_least(1))
+    candidates: int = setting(33, allows=at_least(2))
+    random_step_prob: float = setting(0.3, allows=between(0, 1))
+    batch_size: int = setting(32, allows=at_least(1))
+    lr: float = setting(1e-3, allows=positive())
+    loss: str = setting("listwise", allows=one_of(LOSSES))
     train_points: int = 256
     eval_points: int = 256
     threads: int = 0
-    max_models: int = _at_least(0, 0, "an integer >= 0 (0: every training model)")
+    max_models: int = setting(0, allows=at_least(0, note="0: every training model"))
     map_features: bool = False
     start_views: tuple[int, ...] = DEFAULT_START_VIEWS
     # Not a key (the schema has no such key): every run trains on the same categories.
@@ -318,6 +312,42 @@ def _validation_auc(
     return result
 
 
+def _resume(last: Path, plain: dict, model, optimizer) -> tuple[list[dict], float, int]:
+    """``(rows, best, first epoch)`` of the run in ``last`` when it holds the same settings
+    (its weights and optimizer loaded into ``model`` and ``optimizer``), else a fresh start.
+
+    Raises:
+        ValueError: ``last`` was trained with other settings.
+    """
+    if not last.exists():
+        return [], -np.inf, 0
+    saved, extra = load_conditioned(last)
+    if not _same_run(extra.get("settings"), plain):
+        raise ValueError(f"{last} was trained with other settings; set another out_dir")
+    model.load_state_dict(saved.state_dict())
+    opt = extra["optimizer"]
+    opt["state"] = {int(k): v for k, v in opt["state"].items()}
+    optimizer.load_state_dict(opt)
+    first = int(extra["epoch"]) + 1
+    log.info("resuming at epoch %d", first + 1)
+    return list(extra["rows"]), float(extra["best"]), first
+
+
+def _train_epoch(model, optimizer, samples: dict, order: np.ndarray,
+                 settings: ConditionedSettings) -> list[float]:  # fmt: skip
+    """One pass over ``samples`` in ``order``, batch by batch; the batches' losses."""
+    model.train()
+    losses = []
+    for i in range(0, len(order), settings.batch_size):
+        x, d, s, t, f = _tensors(samples, order[i : i + settings.batch_size])
+        optimizer.zero_grad()
+        loss = batch_loss(settings.loss, model(x, d, s, f), t, s)
+        loss.backward()
+        optimizer.step()
+        losses.append(loss.item())
+    return losses
+
+
 def run(settings: ConditionedSettings) -> dict:
     """Train; returns the last epoch's metrics and the chosen epoch. Resumes from ``last.pt``
     when it holds the same settings but, perhaps, fewer ``epochs``: an epoch's samples come from
@@ -352,19 +382,8 @@ def run(settings: ConditionedSettings) -> dict:
     for key in ("start_views", "categories", "select_categories"):
         plain[key] = list(plain[key])
     plain["net"] = net.to_dict()
-    rows, best, first = [], -np.inf, 0
     last = out / "last.pt"
-    if last.exists():
-        saved, extra = load_conditioned(last)
-        if _same_run(extra.get("settings"), plain):
-            model.load_state_dict(saved.state_dict())
-            opt = extra["optimizer"]
-            opt["state"] = {int(k): v for k, v in opt["state"].items()}
-            optimizer.load_state_dict(opt)
-            rows, best, first = list(extra["rows"]), float(extra["best"]), int(extra["epoch"]) + 1
-            log.info("resuming at epoch %d", first + 1)
-        else:
-            raise ValueError(f"{last} was trained with other settings; set another out_dir")
+    rows, best, first = _resume(last, plain, model, optimizer)
     for epoch in range(first, settings.epochs):
         t0 = time.perf_counter()
         rng = np.random.default_rng([settings.seed, epoch])
@@ -372,15 +391,7 @@ def run(settings: ConditionedSettings) -> dict:
         log.info("epoch %d: %d samples drawn in %.0f s", epoch + 1, len(samples["points"]),
                  time.perf_counter() - t0)  # fmt: skip
         order = rng.permutation(len(samples["points"]))
-        model.train()
-        losses = []
-        for i in range(0, len(order), settings.batch_size):
-            x, d, s, t, f = _tensors(samples, order[i : i + settings.batch_size])
-            optimizer.zero_grad()
-            loss = batch_loss(settings.loss, model(x, d, s, f), t, s)
-            loss.backward()
-            optimizer.step()
-            losses.append(loss.item())
+        losses = _train_epoch(model, optimizer, samples, order, settings)
         probe = {k: v[order[:300]] for k, v in samples.items()}
         train_pred = _predict(model, probe, settings.batch_size)
         val_pred = _predict(model, val_samples, settings.batch_size)

@@ -23,7 +23,7 @@ from nbv.dataset.reader import SHARD_GLOB
 from nbv.geometry.viewspace import get_viewspace
 from nbv.models.config import PRECISIONS, PCNBVConfig
 from nbv.policies.episode import DEFAULT_START_VIEWS
-from nbv.utils.fields import check, fields_of, setting
+from nbv.utils.fields import at_least, check, fields_of, one_of, positive, setting
 
 SCORES = ("coverage", "vig")
 #: The training losses (:mod:`train.losses`), named here so that settings load without torch.
@@ -41,16 +41,6 @@ TrainConfigError = ConfigError
 
 #: ``model.net``: the fields of PCNBVConfig; a null (or absent) one keeps PCNBVConfig's default.
 NetConfig = schema_of(PCNBVConfig, "NetConfig", optional=True, exclude=("n_views",))
-
-
-def _one_of(names: tuple[str, ...], default: str, hint: str = "") -> Any:
-    """A field that takes one of ``names``."""
-    return setting(default, check=lambda v: v in names, allowed=f"one of {', '.join(names)}{hint}")
-
-
-def _at_least(default: int, low: int, allowed: str | None = None) -> Any:
-    """An integer field of at least ``low``."""
-    return setting(default, check=lambda v: v >= low, allowed=allowed or f"an integer >= {low}")
 
 
 def _given(net: dict) -> dict:
@@ -82,7 +72,7 @@ class ScoreSettings:
             volumetric information gain, the convex-hull volume ratio each view would add).
     """
 
-    name: str = _one_of(SCORES, "coverage", " (score=...)")
+    name: str = setting("coverage", allows=one_of(SCORES, " (score=...)"))
 
 
 @dataclass(frozen=True)
@@ -99,7 +89,7 @@ class ModelSettings:
     """
 
     name: str = "pcnbv"
-    input: str = _one_of(INPUTS, "points")
+    input: str = setting("points", allows=one_of(INPUTS))
     net: dict = setting(factory=dict, config=NetConfig, convert=_given, config_default={})
 
 
@@ -189,27 +179,27 @@ class TrainSettings:
     score: ScoreSettings = setting(factory=ScoreSettings)
     model: ModelSettings = setting(factory=ModelSettings)
     seed: int = 0
-    epochs: int = _at_least(4, 1)
-    batch_size: int = _at_least(32, 1)
-    lr: float = setting(1e-3, check=lambda v: v > 0, allowed="a positive number")
+    epochs: int = setting(4, allows=at_least(1))
+    batch_size: int = setting(32, allows=at_least(1))
+    lr: float = setting(1e-3, allows=positive())
     lr_decay: float = setting(0.7, check=lambda v: 0 < v <= 1, allowed="a number in (0, 1]")
-    lr_step_epochs: int = _at_least(20, 1)
-    l2: float = setting(1e-4, check=lambda v: v >= 0, allowed="a number >= 0")
-    l2_scope: str = _one_of(L2_SCOPES, "all")
-    train_points: int = _at_least(512, 1)
-    eval_points: int = _at_least(512, 1)
-    precision: str = _one_of(PRECISIONS, "auto")
-    eval_every: int = _at_least(2, 1)
+    lr_step_epochs: int = setting(20, allows=at_least(1))
+    l2: float = setting(1e-4, allows=at_least(0, "a number"))
+    l2_scope: str = setting("all", allows=one_of(L2_SCOPES))
+    train_points: int = setting(512, allows=at_least(1))
+    eval_points: int = setting(512, allows=at_least(1))
+    precision: str = setting("auto", allows=one_of(PRECISIONS))
+    eval_every: int = setting(2, allows=at_least(1))
     start_views: tuple[int, ...] = DEFAULT_START_VIEWS
-    device: str = _one_of(DEVICES, "auto")
+    device: str = setting("auto", allows=one_of(DEVICES))
     threads: int = 0
     progress: bool = True
-    select: str = _one_of(SELECTIONS, "valid")
+    select: str = setting("valid", allows=one_of(SELECTIONS))
     resume: bool = True
-    random_repeats: int = _at_least(10, 1)
-    loss: str = _one_of(LOSSES, "normalised")
+    random_repeats: int = setting(10, allows=at_least(1))
+    loss: str = setting("normalised", allows=one_of(LOSSES))
     augment: bool = True
-    loader_workers: int = _at_least(0, 0)
+    loader_workers: int = setting(0, allows=at_least(0))
     pin_memory: bool = True
     # Not a key (the schema has no such key): every run trains on the same categories.
     categories: tuple[str, ...] = field(default=TRAIN_CATEGORIES, init=False)

@@ -366,6 +366,52 @@ def _heldout(out_dir: Path, dataset, keys: list[str], settings: TrainSettings, n
     return result
 
 
+def _checkpoint_extra(settings: TrainSettings, identity: dict, lmax: int, device,
+                      selection_keys: list[str]) -> dict:  # fmt: skip
+    """What every checkpoint of the run records beside its weights."""
+    return {
+        "settings": stored_settings(settings),
+        "run_identity": identity,
+        "dataset_identity": identity["dataset_identity"],
+        "input": settings.model.input,
+        "lmax": lmax,
+        "eval_points": settings.eval_points,
+        # Resolved here: "auto" would be resolved again on the evaluating machine, maybe otherwise.
+        "precision": resolve_precision(settings.precision, device),
+        "held_out": settings.held_out,
+        "select": settings.select,
+        # The models whose episodes chose this checkpoint: nbv.eval leaves them out.
+        "selection_keys": selection_keys if settings.select == "valid" else [],
+    }
+
+
+def _ranking_row(model, val, probe, baselines: dict, settings: TrainSettings, device,
+                 epoch: int) -> dict:  # fmt: skip
+    """An epoch's validation loss and ranking, its ranking on the training probe, and the
+    baselines' validation ranking (constant columns, for curves drawn against them); the
+    validation Spearman by model is appended to its own file."""
+    row: dict = {}
+    if len(val):
+        pred, val_loss = predict(model, val, settings, device)
+        row.update(val_loss=val_loss, **ranking_metrics(pred, val, "val"))
+        by_model = spearman_by_model(pred, val.target, val.view_state, val.key)
+        append_csv_rows(settings.out_dir / SPEARMAN_FILE,
+                        [{"epoch": epoch + 1, **r} for r in by_model])  # fmt: skip
+    pred, _ = predict(model, probe, settings, device)
+    row.update(ranking_metrics(pred, probe, "train"))
+    for name, stages in baselines.items():
+        row.update({f"{name}_val_{k}": v for k, v in stages.items()})
+    return row
+
+
+def _save_last(out_dir: Path, model, optimizer, scheduler, extra: dict) -> None:
+    """``last.pt``: the weights, ``extra``, and the optimizer's and scheduler's state to resume."""
+    opt = optimizer.state_dict()
+    opt["state"] = {str(k): v for k, v in opt["state"].items()}
+    save_checkpoint(out_dir / "last.pt", model,
+                    {**extra, "optimizer": opt, "scheduler": scheduler.state_dict()})  # fmt: skip
+
+
 def _train(settings: TrainSettings) -> dict:
     if settings.threads:
         torch.set_num_threads(settings.threads)
@@ -401,21 +447,7 @@ def _train(settings: TrainSettings) -> dict:
     from torch.utils.tensorboard import SummaryWriter
 
     writer = SummaryWriter(str(out_dir / "tb"))
-    metrics_file = out_dir / "metrics.csv"
-    extra_base = {
-        "settings": stored_settings(settings),
-        "run_identity": identity,
-        "dataset_identity": identity["dataset_identity"],
-        "input": settings.model.input,
-        "lmax": lmax,
-        "eval_points": settings.eval_points,
-        # Resolved here: "auto" would be resolved again on the evaluating machine, maybe otherwise.
-        "precision": resolve_precision(settings.precision, device),
-        "held_out": settings.held_out,
-        "select": settings.select,
-        # The models whose episodes chose this checkpoint: nbv.eval leaves them out.
-        "selection_keys": selection_keys if settings.select == "valid" else [],
-    }
+    extra_base = _checkpoint_extra(settings, identity, lmax, device, selection_keys)
     baselines = {}
     if len(val):
         viewspace = str(train.attrs.get("viewspace", "original"))
@@ -425,16 +457,7 @@ def _train(settings: TrainSettings) -> dict:
         stats = train_epoch(model, optimizer, train, settings, epoch, device, augmentation)
         scheduler.step()
         row = {"epoch": epoch + 1, "lr": optimizer.param_groups[0]["lr"], **stats}
-        if len(val):
-            pred, val_loss = predict(model, val, settings, device)
-            row.update(val_loss=val_loss, **ranking_metrics(pred, val, "val"))
-            by_model = spearman_by_model(pred, val.target, val.view_state, val.key)
-            append_csv_rows(out_dir / SPEARMAN_FILE, [{"epoch": epoch + 1, **r} for r in by_model])
-        pred, _ = predict(model, probe, settings, device)
-        row.update(ranking_metrics(pred, probe, "train"))
-        # Constant columns: a curve of the network's Spearman is drawn against them.
-        for name, stages in baselines.items():
-            row.update({f"{name}_val_{k}": v for k, v in stages.items()})
+        row.update(_ranking_row(model, val, probe, baselines, settings, device, epoch))
         last_epoch = epoch + 1 == settings.epochs
         if selection_keys and ((epoch + 1) % settings.eval_every == 0 or last_epoch):
             policy = _network_policy(model, settings, lmax)
@@ -452,15 +475,9 @@ def _train(settings: TrainSettings) -> dict:
         for name, value in row.items():
             if name != "epoch":
                 writer.add_scalar(name, value, epoch + 1)
-        append_csv_rows(metrics_file, [row])
-        opt = optimizer.state_dict()
-        opt["state"] = {str(k): v for k, v in opt["state"].items()}
-        save_checkpoint(
-            out_dir / "last.pt",
-            model,
-            {**extra_base, "epoch": epoch, "metrics": row, "best_auc": best_auc,
-             "optimizer": opt, "scheduler": scheduler.state_dict()},
-        )  # fmt: skip
+        append_csv_rows(out_dir / "metrics.csv", [row])
+        extra = {**extra_base, "epoch": epoch, "metrics": row, "best_auc": best_auc}
+        _save_last(out_dir, model, optimizer, scheduler, extra)
     writer.close()
     if settings.held_out is None:  # fold=-1: no category left to score
         _, extra = load_checkpoint(out_dir / "best.pt", n_views=n_views)

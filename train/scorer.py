@@ -36,7 +36,6 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
@@ -52,6 +51,7 @@ from nbv.planning.settings import VolumetricSettings
 from nbv.planning.view_features import FEATURES, view_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.utils.fields import at_least, between, positive
 from train.losses import per_sample_loss
 from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
 from train.records import append_csv_rows, dataset_identity
@@ -61,16 +61,6 @@ log = logging.getLogger("train.scorer")
 PROG = "train.scorer"
 VIEWSPACES = ("original", "permuted")
 DECISIONS = "decisions.npz"
-
-
-def _at_least(default: int, low: int, allowed: str | None = None) -> Any:
-    """An integer field of at least ``low``."""
-    return setting(default, check=lambda v: v >= low, allowed=allowed or f"an integer >= {low}")
-
-
-def _share(default: float) -> Any:
-    """A probability field."""
-    return setting(default, check=lambda v: 0 <= v <= 1, allowed="in [0, 1]")
 
 
 @dataclass(frozen=True)
@@ -107,10 +97,10 @@ class ScorerSettings:
     dataset: Path
     out_dir: Path
     seed: int = 0
-    starts: int = _at_least(8, 1)
-    mixes: int = _at_least(1, 0)
-    n_views: int = _at_least(10, 2)
-    ig_step_prob: float = _share(0.5)
+    starts: int = setting(8, allows=at_least(1))
+    mixes: int = setting(1, allows=at_least(0))
+    n_views: int = setting(10, allows=at_least(2))
+    ig_step_prob: float = setting(0.5, allows=between(0, 1))
     # Its upper bound depends on ig_step_prob: checked in __post_init__, with the same words.
     oracle_step_prob: float = setting(
         0.25, check=lambda v: v >= 0, allowed="in [0, 1 - ig_step_prob]"
@@ -118,12 +108,12 @@ class ScorerSettings:
     hidden: tuple[int, ...] = setting(
         (32, 32), check=lambda v: all(h >= 1 for h in v), allowed="a list of integers >= 1"
     )
-    epochs: int = _at_least(30, 1)
-    batch_size: int = _at_least(256, 1)
-    lr: float = setting(1e-3, check=lambda v: v > 0, allowed="a positive number")
+    epochs: int = setting(30, allows=at_least(1))
+    batch_size: int = setting(256, allows=at_least(1))
+    lr: float = setting(1e-3, allows=positive())
     weight_by_gain: bool = True
-    workers: int = _at_least(2, 1)
-    max_models: int = _at_least(0, 0, "an integer >= 0 (0: every training model)")
+    workers: int = setting(2, allows=at_least(1))
+    max_models: int = setting(0, allows=at_least(0, note="0: every training model"))
     # Not a key (the schema has no such key): every run trains on the same categories.
     categories: tuple[str, ...] = field(default=TRAIN_CATEGORIES, init=False)
 

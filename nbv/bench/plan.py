@@ -2,7 +2,7 @@
 
 The capture is one full-resolution view of the benchmark's chair (640 x 480; an even 50,000 of
 its points, or all of them when it has fewer), planned on the original viewspace with every point
-kept (``points_per_view=0``), as :func:`nbv.plan.next_view.plan_captures` does after reading
+kept (``points_per_view=0``), as ``python -m nbv.plan captures=...`` does after reading
 the files: the state built, a fresh policy called (for ``ig`` the candidates' rays traced too, as
 in a run's first decision). The references: for ``hull_sco``
 the same plan with the ray-cast view simulation (the planner's exact slow path), for ``ig`` the

@@ -134,6 +134,116 @@ def bench_scene(seed: int = 0) -> dict:
     }
 
 
+def _timed(name: str, ours, reference, target: float | None, note: str = "") -> dict:
+    """A row: ``ours`` timed against ``reference``, a callable to time or the seconds an earlier
+    row measured for it."""
+    t_ours = best_time(ours)
+    t_ref = reference if isinstance(reference, float) else best_time(reference, repeat=2, budget=10)
+    return dict(name=name, ours=t_ours, reference=t_ref, ratio=t_ref / t_ours, target=target,
+                note=note)  # fmt: skip
+
+
+def _geometry_rows(scene: dict) -> list[dict]:
+    """Sampling, signatures, and the coverage and VIG of a view state and of an episode."""
+    views, gt, cloud = scene["views"], scene["gt"], scene["cloud100k"]
+    state = np.zeros(33, dtype=bool)
+    state[[1, 9, 17, 20, 28]] = True
+    bits = coverage_bits(views, gt, DEFAULT_EPS)
+    hulls = view_hull_vertices(views)
+    gt_vol = hull_volume(gt)
+    merged_state = np.concatenate([views[v] for v in np.flatnonzero(state)])
+    episode = [1, 3, 7, 10, 15, 24, 27, 30, 0, 5]
+
+    def union_curve() -> list[float]:
+        unions = UnionHulls(hulls)  # one memo for the episode, as a model record holds it
+        return [unions.volume(episode[:i]) / gt_vol for i in range(1, 11)]
+
+    def per_view_curve() -> float:
+        return [vig_of_state(hulls, np.isin(np.arange(33), episode[:i]), gt_vol)
+                for i in range(1, 11)][-1]  # fmt: skip
+
+    return [
+        _timed("farthest point sampling 100k -> 1024", lambda: farthest_points(cloud, 1024),
+               lambda: numpy_fps(cloud, 1024), 0.030, "fpsample vs numpy"),
+        _timed("signature 100k points, lmax 3", lambda: signature(cloud, 3),
+               lambda: scipy_signature(cloud, 3), 0.020, "recurrences vs scipy+lstsq"),
+        _timed("signature 100k points, lmax 10", lambda: signature(cloud, 10),
+               lambda: scipy_signature(cloud, 10), None, "recurrences vs scipy+lstsq"),
+        _timed("coverage of a view state (5 views)",
+               lambda: coverage_from_bits(bits, state, len(gt)),
+               lambda: (cKDTree(merged_state).query(gt)[0] < DEFAULT_EPS).mean(), 50e-6,
+               "packed bits vs KD-tree on merged cloud"),
+        _timed("VIG of a view state (5 views)", lambda: vig_of_state(hulls, state, gt_vol),
+               lambda: ConvexHull(merged_state).volume / gt_vol, 0.002,
+               "per-view hull vertices vs hull of merged cloud"),
+        _timed("VIG curve of a 10-view episode", union_curve, per_view_curve, None,
+               "unions grown from the last hull vs per-view vertices each step"),
+    ]  # fmt: skip
+
+
+def _set_cover_rows(scene: dict, start_cloud: np.ndarray, seed: int) -> list[dict]:
+    """The set cover's stages and whole plans from a stored start view."""
+    start_hull = start_cloud[ConvexHull(start_cloud).vertices]
+    samples, normals, face_ids = sample_hull(
+        start_hull, DEFAULT_N_SAMP, np.random.default_rng(seed)
+    )
+    hull = convex_hull(start_hull)
+    poses, intrinsics = scene["poses"], scene["intrinsics"]
+    sets = view_sets(samples, normals, poses, intrinsics)
+
+    def plan(**kw) -> Plan:
+        return sco_plan(start_cloud, original_viewspace(), exclude=(1,),
+                        settings=PlannerSettings(**kw), poses=poses)  # fmt: skip
+
+    rows = [
+        _timed("view simulation, 33 views on a hull",
+               lambda: view_sets(samples, normals, poses, intrinsics, face_ids=face_ids),
+               lambda: view_sets(samples, normals, poses, intrinsics, method="raycast", hull=hull),
+               None, "analytic vs ray casting"),
+        _timed("greedy set cover, 9 of 33 views", lambda: greedy_max_coverage(sets, 9, (1,)),
+               lambda: python_greedy(sets, 9, (1,)), 0.001, "packed bits vs Python sets"),
+        _timed("whole 9-view plan (hull+sim+sets+greedy), 2048-point start view", plan,
+               lambda: plan(simulation="raycast"), 0.050, "analytic vs ray-cast simulation"),
+    ]  # fmt: skip
+    # The same ray-cast plan as the row above is the reference.
+    rows.append(
+        _timed(
+            "whole 9-view plan with eps-dilated sets",
+            lambda: plan(dilate=True),
+            rows[-1]["reference"],
+            0.050,
+            "dilated analytic vs ray-cast simulation",
+        )
+    )
+    return rows
+
+
+def _render_rows(scene: dict) -> list[dict]:
+    """Rendering and back-projecting a view: ray casting against Blender."""
+    import tempfile
+
+    import trimesh
+
+    from nbv.bench.render import benchmark
+
+    with tempfile.TemporaryDirectory() as folder:
+        # The dataset's meshes are small: time a synthetic chair too, beside the 50k torus.
+        trimesh.Trimesh(scene["mesh"].vertices, scene["mesh"].faces).export(
+            Path(folder) / "synthetic_chair.obj"
+        )
+        results = benchmark(n_views=12, meshes_dir=Path(folder))
+    rows = []
+    for name, r in results.items():
+        blender = r["blender_s_per_view"] + r["backproject_s_per_view"]
+        raycast = r["raycast_s_per_view"] + r["backproject_s_per_view"]
+        rows.append(dict(
+            name=f"render + back-project a 640x480 view, {name} ({r['triangles']} tri.)",
+            ours=raycast, reference=blender, ratio=blender / raycast, target=0.25,
+            note="ray casting vs Blender; the target is Blender's",
+        ))  # fmt: skip
+    return rows
+
+
 def run(
     render: bool = True,
     network: bool = True,
@@ -147,129 +257,10 @@ def run(
     ``checkpoint``, else the shipped ones; PCNBV-sph's shipped);
     ``render`` the rendering rows."""
     scene = bench_scene(seed)
-    views, gt, cloud = scene["views"], scene["gt"], scene["cloud100k"]
-    state = np.zeros(33, dtype=bool)
-    state[[1, 9, 17, 20, 28]] = True
-    bits = coverage_bits(views, gt, DEFAULT_EPS)
-    hulls = view_hull_vertices(views)
-    gt_vol = hull_volume(gt)
-    merged_state = np.concatenate([views[v] for v in np.flatnonzero(state)])
+    views = scene["views"]
     # The planner sees a start view as the dataset stores it (points_per_view = 2048).
     start_cloud = views[1][rng_pick(len(views[1]), 2048, seed)]
-    start_hull = start_cloud[ConvexHull(start_cloud).vertices]
-    samples, normals, face_ids = sample_hull(
-        start_hull, DEFAULT_N_SAMP, np.random.default_rng(seed)
-    )
-    hull = convex_hull(start_hull)
-    sets = view_sets(samples, normals, scene["poses"], scene["intrinsics"])
-    rows = []
-
-    def row(name, ours, reference, target, note=""):
-        # ``reference`` is a callable to time, or the seconds an earlier row measured for it.
-        t_ours = best_time(ours)
-        if isinstance(reference, float):
-            t_ref = reference
-        else:
-            t_ref = best_time(reference, repeat=2, budget=10)
-        rows.append(
-            dict(
-                name=name,
-                ours=t_ours,
-                reference=t_ref,
-                ratio=t_ref / t_ours,
-                target=target,
-                note=note,
-            )
-        )
-
-    row(
-        "farthest point sampling 100k -> 1024",
-        lambda: farthest_points(cloud, 1024),
-        lambda: numpy_fps(cloud, 1024),
-        0.030,
-        "fpsample vs numpy",
-    )
-    row(
-        "signature 100k points, lmax 3",
-        lambda: signature(cloud, 3),
-        lambda: scipy_signature(cloud, 3),
-        0.020,
-        "recurrences vs scipy+lstsq",
-    )
-    row(
-        "signature 100k points, lmax 10",
-        lambda: signature(cloud, 10),
-        lambda: scipy_signature(cloud, 10),
-        None,
-        "recurrences vs scipy+lstsq",
-    )
-    row(
-        "coverage of a view state (5 views)",
-        lambda: coverage_from_bits(bits, state, len(gt)),
-        lambda: (cKDTree(merged_state).query(gt)[0] < DEFAULT_EPS).mean(),
-        50e-6,
-        "packed bits vs KD-tree on merged cloud",
-    )
-    row(
-        "VIG of a view state (5 views)",
-        lambda: vig_of_state(hulls, state, gt_vol),
-        lambda: ConvexHull(merged_state).volume / gt_vol,
-        0.002,
-        "per-view hull vertices vs hull of merged cloud",
-    )
-    episode = [1, 3, 7, 10, 15, 24, 27, 30, 0, 5]
-
-    def union_curve() -> list[float]:
-        unions = UnionHulls(hulls)  # one memo for the episode, as a model record holds it
-        return [unions.volume(episode[:i]) / gt_vol for i in range(1, 11)]
-
-    row(
-        "VIG curve of a 10-view episode",
-        union_curve,
-        lambda: [
-            vig_of_state(hulls, np.isin(np.arange(33), episode[:i]), gt_vol) for i in range(1, 11)
-        ][-1],
-        None,
-        "unions grown from the last hull vs per-view vertices each step",
-    )
-    row(
-        "view simulation, 33 views on a hull",
-        lambda: view_sets(samples, normals, scene["poses"], scene["intrinsics"], face_ids=face_ids),
-        lambda: view_sets(
-            samples, normals, scene["poses"], scene["intrinsics"], method="raycast", hull=hull
-        ),
-        None,
-        "analytic vs ray casting",
-    )
-    row(
-        "greedy set cover, 9 of 33 views",
-        lambda: greedy_max_coverage(sets, 9, (1,)),
-        lambda: python_greedy(sets, 9, (1,)),
-        0.001,
-        "packed bits vs Python sets",
-    )
-
-    def plan(**kw) -> Plan:
-        settings = PlannerSettings(**kw)
-        viewspace = original_viewspace()
-        return sco_plan(
-            start_cloud, viewspace, exclude=(1,), settings=settings, poses=scene["poses"]
-        )
-
-    row(
-        "whole 9-view plan (hull+sim+sets+greedy), 2048-point start view",
-        plan,
-        lambda: plan(simulation="raycast"),
-        0.050,
-        "analytic vs ray-cast simulation",
-    )
-    row(
-        "whole 9-view plan with eps-dilated sets",
-        lambda: plan(dilate=True),
-        rows[-1]["reference"],  # the same ray-cast plan as the row above
-        0.050,
-        "dilated analytic vs ray-cast simulation",
-    )
+    rows = _geometry_rows(scene) + _set_cover_rows(scene, start_cloud, seed)
     # The views as the dataset stores them (points_per_view = 2048).
     stored = [v[rng_pick(len(v), 2048, seed + i)] for i, v in enumerate(views)]
     rows.append(decision_row(stored, scene["poses"], scene["intrinsics"]))
@@ -288,31 +279,7 @@ def run(
         rows += network_rows(stored, [(name, w, targets[name]) for name, w in networks])
         rows += training_rows(networks, len(stored))
     if render:
-        import tempfile
-
-        import trimesh
-
-        from nbv.bench.render import benchmark
-
-        with tempfile.TemporaryDirectory() as folder:
-            # The dataset's meshes are small: time a synthetic chair too, beside the 50k torus.
-            trimesh.Trimesh(scene["mesh"].vertices, scene["mesh"].faces).export(
-                Path(folder) / "synthetic_chair.obj"
-            )
-            results = benchmark(n_views=12, meshes_dir=Path(folder))
-        for name, r in results.items():
-            blender = r["blender_s_per_view"] + r["backproject_s_per_view"]
-            raycast = r["raycast_s_per_view"] + r["backproject_s_per_view"]
-            rows.append(
-                dict(
-                    name=f"render + back-project a 640x480 view, {name} ({r['triangles']} tri.)",
-                    ours=raycast,
-                    reference=blender,
-                    ratio=blender / raycast,
-                    target=0.25,
-                    note="ray casting vs Blender; the target is Blender's",
-                )
-            )
+        rows += _render_rows(scene)
     return rows
 
 

@@ -22,11 +22,6 @@ from nbv.utils.fields import fields_of
 __all__ = ["ENTRY", "ConfigError", "Samples", "Settings"]
 
 
-def _camera(value: dict) -> Intrinsics:
-    """``{width, height, focal}`` of ``conf/camera/`` as the camera (principal point centred)."""
-    return Intrinsics.centred(value["width"], value["height"], value["focal"])
-
-
 @dataclass(frozen=True)
 class _Switch:
     """The ``enabled`` key of :class:`Samples` (documented there)."""
@@ -64,7 +59,10 @@ class Settings(GenerationSettings):
     """
 
     intrinsics: Intrinsics = setting(
-        factory=Intrinsics.centred, key="camera", config=CameraConfig, convert=_camera
+        factory=Intrinsics.centred,
+        key="camera",
+        config=CameraConfig,
+        convert=Intrinsics.from_config,
     )
     renderer: Renderer = field(default_factory=Renderer)
     samples: Samples = field(default_factory=Samples)

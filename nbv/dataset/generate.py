@@ -197,12 +197,9 @@ def _finish(
     )
 
 
-def generate(settings: GenerationSettings) -> Summary:
-    """Generate (or resume) one shard of a dataset; see the module docstring.
-
-    Returns:
-        The run's :class:`Summary`; per-model failures are recorded, not raised.
-    """
+def _shard_models(settings: GenerationSettings) -> list:
+    """The models of the source that this shard makes, in order: those of ``models`` when it is
+    set, every ``num_shards``-th from ``shard`` on, the first ``limit`` of them."""
     models = list_models(
         settings.source,
         settings.root,
@@ -215,8 +212,16 @@ def generate(settings: GenerationSettings) -> Summary:
         wanted = set(settings.models)
         models = [m for m in models if m.key in wanted]
     mine = models[settings.shard :: settings.num_shards]
-    if settings.limit is not None:
-        mine = mine[: settings.limit]
+    return mine if settings.limit is None else mine[: settings.limit]
+
+
+def generate(settings: GenerationSettings) -> Summary:
+    """Generate (or resume) one shard of a dataset; see the module docstring.
+
+    Returns:
+        The run's :class:`Summary`; per-model failures are recorded, not raised.
+    """
+    mine = _shard_models(settings)
     renderer = settings.renderer
     if renderer.backend == "blender" and renderer.blender is not None and mine:
         # A cluster's binary is tried once on a tiny scene, before anything is written: without

@@ -22,17 +22,19 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.render.job import BACKENDS
 from nbv.render.noise import DepthNoise
-from nbv.utils.fields import ConfigError, check, check_ranges, fields_of, setting
+from nbv.utils.fields import (
+    ConfigError,
+    at_least,
+    check,
+    check_ranges,
+    fields_of,
+    one_of,
+    or_null,
+    positive,
+    setting,
+)
 
 __all__ = ["BACKENDS", "GenerationSettings", "Noise", "Renderer", "Synthetic"]
-
-
-def _one_of(names: tuple[str, ...]) -> dict:
-    return dict(check=lambda v: v in names, allowed=f"one of {', '.join(names)}")
-
-
-def _at_least(low: int) -> dict:
-    return dict(check=lambda v: v >= low, allowed=f"an integer >= {low}")
 
 
 @dataclass(frozen=True)
@@ -97,12 +99,12 @@ class Renderer:
         noise: the depth-sensor model (:class:`Noise`).
     """
 
-    backend: str = setting("blender", **_one_of(BACKENDS))
+    backend: str = setting("blender", allows=one_of(BACKENDS))
     blender: str | None = None
     threads: int = 0
     device: str = "CPU"
-    processes: int = setting(0, **_at_least(0))
-    chunk: int = setting(16, **_at_least(1))
+    processes: int = setting(0, allows=at_least(0))
+    chunk: int = setting(16, allows=at_least(1))
     noise: Noise = field(default_factory=Noise)
 
 
@@ -166,7 +168,7 @@ class GenerationSettings:
         progress: show a progress bar.
     """
 
-    source: str = setting("synthetic", **_one_of(SOURCES))
+    source: str = setting("synthetic", allows=one_of(SOURCES))
     root: str | None = None
     categories: tuple[str, ...] | None = None
     synthetic: Synthetic = field(default_factory=Synthetic)
@@ -174,10 +176,8 @@ class GenerationSettings:
     seed: int = 0
     out_dir: Path = field(kw_only=True)
     shard: int = 0
-    num_shards: int = setting(1, **_at_least(1))
-    limit: int | None = setting(
-        None, check=lambda v: v is None or v >= 0, allowed="null or an integer >= 0"
-    )
+    num_shards: int = setting(1, allows=at_least(1))
+    limit: int | None = setting(None, allows=or_null(at_least(0)))
     models: tuple[str, ...] | None = None
     viewspaces: dict[str, str] = setting(
         factory=lambda: dict(DEFAULT_VIEWSPACES),
@@ -189,11 +189,9 @@ class GenerationSettings:
         config_default=None,
     )
     intrinsics: Intrinsics = field(default_factory=Intrinsics.centred)
-    n_gt: int = setting(DEFAULT_N_GT, **_at_least(1))
-    eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
-    points_per_view: int = setting(
-        DEFAULT_POINTS_PER_VIEW, check=lambda v: v >= 0, allowed="an integer >= 0 (0 = all)"
-    )
+    n_gt: int = setting(DEFAULT_N_GT, allows=at_least(1))
+    eps: float = setting(DEFAULT_EPS, allows=positive("distance"))
+    points_per_view: int = setting(DEFAULT_POINTS_PER_VIEW, allows=at_least(0, note="0 = all"))
     keep_depth: bool = False
     renderer: Renderer = field(default_factory=Renderer)
     progress: bool = True

@@ -1,4 +1,5 @@
-"""The HDF5 layout of a dataset shard (DESIGN.md's contract) and the functions that write it.
+"""The HDF5 layout of a dataset shard and the functions that write it (the contract between
+stages: docs/dataset.md, "The shard file").
 
 A shard file holds::
 
@@ -38,7 +39,7 @@ from nbv.utils.atomic import atomic_path
 SCHEMA_VERSION = 1
 
 
-#: Root attributes every shard carries (DESIGN.md).
+#: Root attributes every shard carries (docs/dataset.md, "The shard file").
 ROOT_ATTRS = ("schema_version", "eps", "n_gt", "width", "height", "fx", "fy", "cx", "cy")
 
 

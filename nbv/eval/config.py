@@ -14,7 +14,6 @@ store the settings in.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,6 +34,7 @@ from nbv.geometry.viewspace import ViewspaceError, get_viewspace, is_named
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
 from nbv.policies.registry import CHECKS, DEFAULT_METHODS, METHODS, NETWORK_INPUTS, networks_of
+from nbv.utils.fields import at_least, or_null, positive
 
 #: The datasets prepared from meshes (rendered, scored and cached by :mod:`nbv.eval.prepare`):
 #: name -> the dataset source they are made with (nbv.dataset.sources).
@@ -68,11 +68,6 @@ def names_setting(label: str, default: tuple[str, ...], key: str | None = None, 
 def _optional_path(value: str | None) -> Path | None:
     """A path the YAML may leave null or empty (both: none)."""
     return Path(value) if value else None
-
-
-def _camera(value: dict) -> Intrinsics:
-    """``{width, height, focal}`` of ``conf/camera/`` as the camera (principal point centred)."""
-    return Intrinsics.centred(value["width"], value["height"], value["focal"])
 
 
 def _allowed(key: str, values: tuple, allowed: tuple, empty_ok: bool = False) -> None:
@@ -110,10 +105,6 @@ def _group_ranges(obj: Any, group: str) -> None:
         raise EvalConfigError(f"{group}.{err}") from None
 
 
-def _at_least(n: int) -> Callable[[int], bool]:
-    return lambda v: v >= n
-
-
 @dataclass(frozen=True)
 class PrepareSettings:
     """How ``mesh_dir`` becomes a dataset (:func:`nbv.dataset.generate.generate`,
@@ -138,12 +129,12 @@ class PrepareSettings:
     dir: Path = Path("outputs/eval/prepared")
     backend: str = "raycast"
     blender: str | None = None
-    camera: Intrinsics = setting(factory=Intrinsics.centred, config=CameraConfig, convert=_camera)
-    n_gt: int = setting(DEFAULT_N_GT, check=_at_least(1), allowed="an integer >= 1")
-    eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
-    points_per_view: int = setting(
-        DEFAULT_POINTS_PER_VIEW, check=_at_least(0), allowed="an integer >= 0 (0 = all)"
+    camera: Intrinsics = setting(
+        factory=Intrinsics.centred, config=CameraConfig, convert=Intrinsics.from_config
     )
+    n_gt: int = setting(DEFAULT_N_GT, allows=at_least(1))
+    eps: float = setting(DEFAULT_EPS, allows=positive("distance"))
+    points_per_view: int = setting(DEFAULT_POINTS_PER_VIEW, allows=at_least(0, note="0 = all"))
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -189,7 +180,7 @@ class DisturbSettings:
         "disturb.viewspace", VIEWSPACES[:1], key="viewspace"
     )
     start_views: tuple[int, ...] | None = (1, 10, 24)
-    radius: float = setting(0.5, check=lambda v: v > 0, allowed="a positive distance")
+    radius: float = setting(0.5, allows=positive("distance"))
     noise: tuple[float, ...] = setting(
         (0.002, 0.005, 0.01), check=_distinct_positive,
         allowed="distinct positive standard deviations",
@@ -281,26 +272,22 @@ class EvalSettings:
     datasets: tuple[str, ...] = names_setting("dataset", (), key="dataset", config_default=None)
     data_dir: Path = Path("data/generated/synthetic")
     mesh_dir: Path | None = setting(None, convert=_optional_path)
-    limit: int | None = setting(
-        None, check=lambda v: v is None or v >= 1, allowed="null or an integer >= 1"
-    )
+    limit: int | None = setting(None, allows=or_null(at_least(1)))
     prepare: PrepareSettings = setting(factory=PrepareSettings)
     viewspaces: tuple[str, ...] = names_setting("viewspace", VIEWSPACES, key="viewspace")
     start_views: tuple[int, ...] = setting(
         DEFAULT_START_VIEWS, check=lambda v: len(v) >= 1, allowed="non-empty"
     )
-    n_views: int = setting(EPISODE_VIEWS, check=_at_least(2), allowed="an integer >= 2")
+    n_views: int = setting(EPISODE_VIEWS, allows=at_least(2))
     checkpoints: dict[str, str] = setting(factory=dict)
     hull: PlannerSettings = setting(factory=PlannerSettings)
     ig: VolumetricSettings = setting(factory=VolumetricSettings)
     ig_scorer: Path | None = setting(None, convert=_optional_path)
     disturb: DisturbSettings = setting(factory=DisturbSettings)
-    random_repeats: int = setting(10, check=_at_least(1), allowed="an integer >= 1")
+    random_repeats: int = setting(10, allows=at_least(1))
     seed: int = 0
-    threads: int = setting(0, check=_at_least(0), allowed="an integer >= 0 (0 = torch's default)")
-    workers: int = setting(
-        1, check=_at_least(0), allowed="an integer >= 0 (0 = one per available core, at most 8)"
-    )
+    threads: int = setting(0, allows=at_least(0, note="0 = torch's default"))
+    workers: int = setting(1, allows=at_least(0, note="0 = one per available core, at most 8"))
     progress: bool = True
     plots: bool = True
     batched: bool = True

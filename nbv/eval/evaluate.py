@@ -428,6 +428,37 @@ def with_shipped_weights(settings: EvalSettings) -> EvalSettings:
     return dataclasses.replace(settings, checkpoints={**settings.checkpoints, **found})
 
 
+def _gather(opened: list, done_before: dict, results: dict) -> tuple[list[EpisodeRecord], int]:
+    """Every model's records in the datasets' order, read back or just run, noting in each
+    dataset's info the models whose ground-truth hull failed or is flat.
+
+    Returns:
+        ``(records, filled)``: ``filled`` episodes read back got their metrics computed.
+    """
+    records: list[EpisodeRecord] = []
+    filled = 0
+    for info, ds in opened:
+        for key in info.keys:
+            if (info.name, key) in done_before:
+                done = done_before[(info.name, key)]
+                # A log written before the metrics existed: compute them from the views read
+                # back (they are functions of the views and the dataset alone).
+                lacking = sorted({r.viewspace for r in done if not r.metrics})
+                model = read_model(ds, info.rendered, key, tuple(lacking))
+                filled += fill_metrics(done, model, float(ds.attrs["eps"]))
+                records += done
+                error, volume = model.gt_hull_error, model.gt_hull_volume
+            else:
+                result = results[(info.name, key)]
+                records += result.records
+                error, volume = result.gt_hull_error, result.gt_hull_volume
+            if error:
+                info.qhull_failures.append((key, error))
+            elif not volume > 0:
+                info.flat.append(key)
+    return records, filled
+
+
 def evaluate(settings: EvalSettings) -> Evaluation:
     """Run every episode of the settings (see the module docstring)."""
     from tqdm import tqdm
@@ -459,7 +490,6 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     if episodes.done:
         log.info("resuming: %d models done in %s", len(episodes.done), episodes.path)
     total = sum(len(info.keys) for info, _ in opened) * len(jobs)
-    infos = {info.name: info for info, _ in opened}
     tasks, done_before = [], {}
     for info, ds in opened:
         ctx = method_context(settings, ds, networks, scorer)
@@ -484,27 +514,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
                      n, len(tasks), time.perf_counter() - t0)  # fmt: skip
     bar.close()
     seconds = time.perf_counter() - t0
-    records: list[EpisodeRecord] = []
-    filled = 0
-    for info, ds in opened:
-        for key in info.keys:
-            if (info.name, key) in done_before:
-                done = done_before[(info.name, key)]
-                # A log written before the metrics existed: compute them from the views read
-                # back (they are functions of the views and the dataset alone).
-                lacking = sorted({r.viewspace for r in done if not r.metrics})
-                model = read_model(ds, info.rendered, key, tuple(lacking))
-                filled += fill_metrics(done, model, float(ds.attrs["eps"]))
-                records += done
-                error, volume = model.gt_hull_error, model.gt_hull_volume
-            else:
-                result = results[(info.name, key)]
-                records += result.records
-                error, volume = result.gt_hull_error, result.gt_hull_volume
-            if error:
-                infos[info.name].qhull_failures.append((key, error))
-            elif not volume > 0:
-                infos[info.name].flat.append(key)
+    records, filled = _gather(opened, done_before, results)
     resumed = sum(len(d) for d in done_before.values())
     if filled:
         log.info("computed the metrics of %d episodes read back without them", filled)

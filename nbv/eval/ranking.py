@@ -56,6 +56,7 @@ from nbv.planning.settings import PlannerSettings
 from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD, MethodContext
+from nbv.utils.fields import at_least, or_null
 from nbv.utils.markdown import md_table
 from nbv.utils.ranking import best_view_hit, spearman_per_sample, split_half_reliability
 from nbv.utils.stats import bootstrap_mean
@@ -285,9 +286,7 @@ class RankingSettings:
     data_dir: Path = Path("data/generated/synthetic")
     dataset: str = "unseen"
     mesh_dir: Path | None = None
-    limit: int | None = setting(
-        None, check=lambda v: v is None or v >= 1, allowed="null or an integer >= 1"
-    )
+    limit: int | None = setting(None, allows=or_null(at_least(1)))
     checkpoints: dict[str, str] = setting(factory=dict)
 
     def __post_init__(self) -> None:

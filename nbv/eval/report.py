@@ -256,20 +256,10 @@ def noise_table(changes: list[dict], sigmas) -> list[str]:
     ]
 
 
-def report_markdown(evaluation) -> str:
-    """The text of ``report.md``: :func:`report_body` and the plots found in the run folder."""
-    return report_body(evaluation) + plots_section(Path(evaluation.settings.out_dir))
-
-
-def report_body(evaluation) -> str:
-    """The text of ``report.md`` but its plots (the costly part: every table)."""
+def _header(evaluation, methods: list[str]) -> list[str]:
+    """The report's title, the episodes' protocol, the datasets (and what was left out of them),
+    the networks and scorer used and the skipped methods."""
     s = evaluation.settings
-    records = evaluation.records
-    g = groups(records)
-    datasets = [info.name for info in evaluation.datasets]
-    viewspaces = list(s.viewspaces)
-    methods = order_methods(r.method for r in records if r.check is None)
-    n_eps = len(records)
     resumed = (
         f" ({evaluation.resumed} of them read back from `episodes.jsonl`)"
         if evaluation.resumed
@@ -278,11 +268,11 @@ def report_body(evaluation) -> str:
     lines = [
         f"# Evaluation `{s.out_dir.name}`",
         "",
-        f"{n_eps} episodes{resumed}, run in {evaluation.seconds:.1f} s. Each episode: a start view "
-        f"({', '.join(map(str, s.start_views))}), then {s.n_views - 1} views chosen by the "
-        f"method; coverage (eps from the dataset) and VIG after each view against the "
-        f"ground truth; AUC = (c_1 + ... + c_{s.n_views - 1} + 0.5 c_{s.n_views}) / "
-        f"{s.n_views}. Seed {s.seed}.",
+        f"{len(evaluation.records)} episodes{resumed}, run in {evaluation.seconds:.1f} s. Each "
+        f"episode: a start view ({', '.join(map(str, s.start_views))}), then {s.n_views - 1} "
+        f"views chosen by the method; coverage (eps from the dataset) and VIG after each view "
+        f"against the ground truth; AUC = (c_1 + ... + c_{s.n_views - 1} + 0.5 "
+        f"c_{s.n_views}) / {s.n_views}. Seed {s.seed}.",
         "",
         "Datasets:",
     ]
@@ -325,82 +315,61 @@ def report_body(evaluation) -> str:
     if evaluation.skipped:
         lines += ["", "Skipped methods:"]
         lines += [f"- `{m}`: {reason}" for m, reason in evaluation.skipped.items()]
+    return lines
 
-    lines += [
-        "",
-        "## AUC (mean [95 % bootstrap interval] over models x start views)",
-        "",
-        f"Intervals resample models (seed {s.seed}, {N_BOOT:,} draws). Random is averaged over "
-        f"{s.random_repeats} seeds per episode first.",
-        "",
-    ]
-    lines += method_table(
-        methods, datasets, viewspaces,
-        lambda m, d, vs: g[(d, vs, m, None)]["auc_ci"].text(3, signed=False)
-        if (d, vs, m, None) in g else "",
-    )  # fmt: skip
-    lines += baseline_tables(records, methods, datasets, viewspaces, s.seed)
-    lines += filler_table(g, methods, datasets, viewspaces)
-    lines += tie_lines(records, datasets, viewspaces, s.n_views)
-    lines += metrics_tables(records, datasets, viewspaces, s.n_views, s.seed)
 
-    lines += ["", "## Mean coverage after each view", ""]
-    lines += curve_tables(g, datasets, viewspaces, s.n_views, "coverage")
-    lines += [
-        "",
-        "## Mean VIG after each view",
-        "",
-        "VIG = hull volume of the views' points / hull volume of the ground-truth samples; it "
-        "can pass 1 a little, since the samples' hull lies slightly inside the surface the "
-        "views capture. Models with a flat ground truth are left out (their VIG is undefined).",
-    ]
-    lines += curve_tables(g, datasets, viewspaces, s.n_views, "vig")
-    lines += vig_table(records, methods, datasets, viewspaces, s.seed)
-    lines += ["", "## AUC per category", ""]
-    lines += category_tables(records, datasets, viewspaces)
+def _replan_section(records: list, methods: list[str], datasets: list[str],
+                    viewspaces: list[str], seed: int) -> list[str]:  # fmt: skip
+    """Replanning minus one-shot set cover, paired, when both ran ([] otherwise)."""
+    if not {HULL_SCO.name, HULL_SCO_REPLAN.name} <= set(methods):
+        return []
+    lines = ["", "## Replanning after every view vs one-shot convex-hull set cover", ""]
+    rows = []
+    means = episode_means([r for r in records if r.check is None])
+    for d in datasets:
+        for vs in viewspaces:
+            diff = paired_from_means(
+                means, (d, vs, HULL_SCO.name, None), (d, vs, HULL_SCO_REPLAN.name, None), seed
+            )
+            if diff:
+                rows.append([d, vs, str(diff.interval.n), diff.interval.text(4),
+                             verdict_of(diff.interval, "replan", "one-shot")])  # fmt: skip
+    return lines + md_table(["dataset", "viewspace", "episodes", "AUC replan - one-shot", ""], rows)
 
-    if {HULL_SCO.name, HULL_SCO_REPLAN.name} <= set(methods):
-        lines += ["", "## Replanning after every view vs one-shot convex-hull set cover", ""]
-        rows = []
-        means = episode_means([r for r in records if r.check is None])
-        for d in datasets:
-            for vs in viewspaces:
-                diff = paired_from_means(
-                    means, (d, vs, HULL_SCO.name, None), (d, vs, HULL_SCO_REPLAN.name, None), s.seed
-                )
-                if diff:
-                    rows.append([d, vs, str(diff.interval.n), diff.interval.text(4),
-                                 verdict_of(diff.interval, "replan", "one-shot")])  # fmt: skip
-        lines += md_table(["dataset", "viewspace", "episodes", "AUC replan - one-shot", ""], rows)
 
+def _disturbance_sections(records: list, s) -> list[str]:
+    """The position-noise table and the disturbance checks (the paper's Fig. 18)."""
     changes = auc_changes(records, s.seed)
-    lines += noise_table(changes, s.disturb.noise)
+    lines = noise_table(changes, s.disturb.noise)
     changes = [r for r in changes if r["sigma"] is None]
     lines += ["", "## Disturbance checks (the paper's Fig. 18)", ""]
-    if changes:
-        lines += [
-            "AUC of the method, with the disturbance, and the paired change (disturbed - "
-            "undisturbed, mean [95 % bootstrap interval] over the same episodes).",
-            "",
-        ]
-        rows = [
-            [r["check"], r["method"], r["dataset"], r["viewspace"], str(r["n"]), fmt(r["auc"]),
-             fmt(r["auc_disturbed"]), r["change"].text(3)]
-            for r in sorted(changes, key=lambda r: (r["dataset"], r["check"], r["method"]))
-        ]  # fmt: skip
-        lines += md_table(
-            ["check", "method", "dataset", "viewspace", "episodes", "AUC", "AUC disturbed",
-             "change"], rows,
-        )  # fmt: skip
-    else:
-        lines.append("No check ran (disabled, or none of its methods ran).")
-
-    times = timing_table(records)
+    if not changes:
+        return lines + ["No check ran (disabled, or none of its methods ran)."]
     lines += [
+        "AUC of the method, with the disturbance, and the paired change (disturbed - "
+        "undisturbed, mean [95 % bootstrap interval] over the same episodes).",
+        "",
+    ]
+    rows = [
+        [r["check"], r["method"], r["dataset"], r["viewspace"], str(r["n"]), fmt(r["auc"]),
+         fmt(r["auc_disturbed"]), r["change"].text(3)]
+        for r in sorted(changes, key=lambda r: (r["dataset"], r["check"], r["method"]))
+    ]  # fmt: skip
+    return lines + md_table(
+        ["check", "method", "dataset", "viewspace", "episodes", "AUC", "AUC disturbed", "change"],
+        rows,
+    )
+
+
+def _timing_section(records: list, methods: list[str], n_views: int) -> list[str]:
+    """Seconds per episode and stage (the paper's Table 1), beside the paper's, and per
+    decision."""
+    times = timing_table(records)
+    lines = [
         "",
         "## Timing per reconstruction (the paper's Table 1)",
         "",
-        f"Mean seconds per episode ({s.n_views - 1} views after the start view) over all "
+        f"Mean seconds per episode ({n_views - 1} views after the start view) over all "
         "undisturbed episodes. `online` = total without the view simulation (the paper counts "
         "its Blender view simulation as offline; ours is analytic and included in `total`). "
         "Our PCNBV samples the stored clouds (up to the dataset's points_per_view a view), "
@@ -418,20 +387,68 @@ def report_body(evaluation) -> str:
             for c, ratio in r.items():
                 rows.append([m, c, fmt(PAPER_TIMES[m][c], 2), fmt(times[m][c], 4), fmt(ratio, 1)])
         lines += md_table(["method", "stage", "paper s", "our s", "paper / ours"], rows)
-    lines += decision_table(records, methods, s.n_views)
+    return lines + decision_table(records, methods, n_views)
 
-    lines += ["", "## The paper's claims, measured", ""]
-    lines += claims(evaluation)
 
+def _notes_section(records: list) -> list[str]:
+    """The work-arounds the methods noted, per method ([] without any)."""
     notes: dict[str, set] = defaultdict(set)
     for r in records:
         for n in r.notes:
             notes[f"{r.method}{'/' + r.check if r.check else ''}"].add(f"{r.key}: {n}")
-    if notes:
-        lines += ["", "## Work-arounds", ""]
-        for m, ns in sorted(notes.items()):
-            lines.append(f"- `{m}`: " + "; ".join(sorted(ns)))
+    if not notes:
+        return []
+    return ["", "## Work-arounds", ""] + [
+        f"- `{m}`: " + "; ".join(sorted(ns)) for m, ns in sorted(notes.items())
+    ]
 
+
+def report_body(evaluation) -> str:
+    """The text of ``report.md`` but its plots (the costly part: every table)."""
+    s = evaluation.settings
+    records = evaluation.records
+    g = groups(records)
+    datasets = [info.name for info in evaluation.datasets]
+    viewspaces = list(s.viewspaces)
+    methods = order_methods(r.method for r in records if r.check is None)
+    lines = _header(evaluation, methods)
+    lines += [
+        "",
+        "## AUC (mean [95 % bootstrap interval] over models x start views)",
+        "",
+        f"Intervals resample models (seed {s.seed}, {N_BOOT:,} draws). Random is averaged over "
+        f"{s.random_repeats} seeds per episode first.",
+        "",
+    ]
+    lines += method_table(
+        methods, datasets, viewspaces,
+        lambda m, d, vs: g[(d, vs, m, None)]["auc_ci"].text(3, signed=False)
+        if (d, vs, m, None) in g else "",
+    )  # fmt: skip
+    lines += baseline_tables(records, methods, datasets, viewspaces, s.seed)
+    lines += filler_table(g, methods, datasets, viewspaces)
+    lines += tie_lines(records, datasets, viewspaces, s.n_views)
+    lines += metrics_tables(records, datasets, viewspaces, s.n_views, s.seed)
+    lines += ["", "## Mean coverage after each view", ""]
+    lines += curve_tables(g, datasets, viewspaces, s.n_views, "coverage")
+    lines += [
+        "",
+        "## Mean VIG after each view",
+        "",
+        "VIG = hull volume of the views' points / hull volume of the ground-truth samples; it "
+        "can pass 1 a little, since the samples' hull lies slightly inside the surface the "
+        "views capture. Models with a flat ground truth are left out (their VIG is undefined).",
+    ]
+    lines += curve_tables(g, datasets, viewspaces, s.n_views, "vig")
+    lines += vig_table(records, methods, datasets, viewspaces, s.seed)
+    lines += ["", "## AUC per category", ""]
+    lines += category_tables(records, datasets, viewspaces)
+    lines += _replan_section(records, methods, datasets, viewspaces, s.seed)
+    lines += _disturbance_sections(records, s)
+    lines += _timing_section(records, methods, s.n_views)
+    lines += ["", "## The paper's claims, measured", ""]
+    lines += claims(evaluation)
+    lines += _notes_section(records)
     return "\n".join(lines) + "\n"
 
 

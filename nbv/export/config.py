@@ -13,6 +13,7 @@ from typing import Any
 
 from nbv.config.schema import ConfigError, PathsConfig, names
 from nbv.config.settings import Entry, check_ranges, setting
+from nbv.utils.fields import at_least, or_null
 
 
 def _names_of(key: str) -> Any:
@@ -40,9 +41,7 @@ class ExportSettings:
     data_dir: Path | None = None
     viewspaces: tuple[str, ...] = _names_of("viewspace")
     methods: tuple[str, ...] = _names_of("methods")
-    limit: int | None = setting(
-        None, check=lambda v: v is None or v >= 1, allowed="null or an integer >= 1"
-    )
+    limit: int | None = setting(None, allows=or_null(at_least(1)))
     ascii: bool = False
     progress: bool = True
     out_dir: Path = field(kw_only=True)

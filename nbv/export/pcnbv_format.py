@@ -288,6 +288,34 @@ def check_complete(sources: Sequence[Source], selections: Sequence[Selection]) -
             )
 
 
+def _write_source(out: Path, source: Source, ascii: bool, bar) -> dict:
+    """One dataset's model and class lists, viewspaces and models; its manifest entry."""
+    eps = float(source.dataset.attrs["eps"])
+    if eps * eps != PCNBV_SQUARED_EPS:
+        log.warning("%s: eps=%r, not PC-NBV's sqrt(5e-5): its scripts will score a few "
+                    "ground-truth points differently", source.name, eps)  # fmt: skip
+    classes = {k: source.dataset.index[k][1] for k in source.keys}
+    _write_lines(models_path(out, source.name), source.keys)
+    _write_lines(classes_path(out, source.name), dict.fromkeys(classes.values()))
+    for vs in source.viewspaces:
+        write_text(viewspace_path(out, source.name, vs), _rows(source.dataset.viewspaces[vs]))
+    views = {}
+    for key in source.keys:
+        views[key] = _write_model(out, source, key, ascii)
+        bar.update(1)
+    return {
+        "path": str(source.dataset.files[0].parent),
+        "models": list(source.keys),
+        "classes": classes,
+        "viewspaces": list(source.viewspaces),
+        "n_gt": int(source.dataset.attrs["n_gt"]),
+        "eps": eps,
+        "pcnbv_criterion": eps * eps == PCNBV_SQUARED_EPS,
+        "points_per_view": source.full.config.get("points_per_view"),
+        "views": views,
+    }
+
+
 def export(
     out: Path,
     sources: Sequence[Source],
@@ -320,33 +348,7 @@ def export(
     out = Path(out)
     total = sum(len(s.keys) for s in sources)
     bar = tqdm(total=total, desc="export", unit="model", disable=not progress)
-    datasets = {}
-    for source in sources:
-        eps = float(source.dataset.attrs["eps"])
-        if eps * eps != PCNBV_SQUARED_EPS:
-            log.warning("%s: eps=%r, not PC-NBV's sqrt(5e-5): its scripts will score a few "
-                        "ground-truth points differently", source.name, eps)  # fmt: skip
-        classes = {k: source.dataset.index[k][1] for k in source.keys}
-        _write_lines(models_path(out, source.name), source.keys)
-        _write_lines(classes_path(out, source.name), dict.fromkeys(classes.values()))
-        for vs in source.viewspaces:
-            positions = source.dataset.viewspaces[vs]
-            write_text(viewspace_path(out, source.name, vs), _rows(positions))
-        views = {}
-        for key in source.keys:
-            views[key] = _write_model(out, source, key, ascii)
-            bar.update(1)
-        datasets[source.name] = {
-            "path": str(source.dataset.files[0].parent),
-            "models": list(source.keys),
-            "classes": classes,
-            "viewspaces": list(source.viewspaces),
-            "n_gt": int(source.dataset.attrs["n_gt"]),
-            "eps": eps,
-            "pcnbv_criterion": eps * eps == PCNBV_SQUARED_EPS,
-            "points_per_view": source.full.config.get("points_per_view"),
-            "views": views,
-        }
+    datasets = {source.name: _write_source(out, source, ascii, bar) for source in sources}
     bar.close()
 
     experiments = _experiments(selections)

@@ -15,7 +15,9 @@ Conventions (used everywhere in the project):
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -54,6 +56,11 @@ class Intrinsics:
     def centred(cls, width: int = 640, height: int = 480, focal: float = 476.0) -> Intrinsics:
         """Square pixels, principal point at the image centre (PC-NBV's camera by default)."""
         return cls(width, height, focal, focal, (width - 1) / 2.0, (height - 1) / 2.0)
+
+    @classmethod
+    def from_config(cls, camera: Mapping[str, Any]) -> Intrinsics:
+        """A ``camera: {width, height, focal}`` of ``conf/camera/`` (principal point centred)."""
+        return cls.centred(camera["width"], camera["height"], camera["focal"])
 
     def as_dict(self) -> dict[str, int | float]:
         """``{"width", "height", "fx", "fy", "cx", "cy"}``, sizes as int, the rest as float:

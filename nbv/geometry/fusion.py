@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nbv.geometry.camera import BACKGROUND_DEPTH, Intrinsics, backproject, valid_depth
-from nbv.utils.fields import check_ranges, setting
+from nbv.utils.fields import at_least, check_ranges, setting
 
 __all__ = ["VOXELS_PER_RADIUS", "FusionSettings", "fuse_depth"]
 
@@ -69,11 +69,11 @@ class FusionSettings:
     voxel: float | None = setting(
         None, check=_null_or_positive, allowed="null or a positive distance"
     )
-    truncation: float = setting(4.0, check=lambda v: v >= 1, allowed="a number of voxels >= 1")
+    truncation: float = setting(4.0, allows=at_least(1, "a number of voxels"))
     max_depth: float | None = setting(
         None, check=_null_or_positive, allowed="null or a positive distance"
     )
-    min_views: int = setting(1, check=lambda v: v >= 1, allowed="an integer >= 1")
+    min_views: int = setting(1, allows=at_least(1))
 
     def __post_init__(self) -> None:
         check_ranges(self)

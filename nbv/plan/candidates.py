@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nbv.plan.object_estimate import Plane
-from nbv.utils.fields import ConfigError, check_ranges, setting
+from nbv.utils.fields import ConfigError, at_least, between, check_ranges, setting
 
 #: The reasons a candidate is dropped, in the order they are tried.
 REASONS = ("support", "elevation", "wall", "cone", "box")
@@ -67,12 +67,12 @@ class CandidateSettings:
         (), check=lambda w: all(_plane_ok(p) and p is not None for p in w),
         allowed="a list of planes [a, b, c, d] with (a, b, c) not zero",
     )  # fmt: skip
-    clearance: float = setting(0.0, check=lambda v: v >= 0, allowed="a distance >= 0")
+    clearance: float = setting(0.0, allows=at_least(0, "a distance"))
     cone_axis: tuple[float, float, float] | None = setting(
         None, check=lambda p: p is None or (len(p) == 3 and float(np.linalg.norm(p)) > 0),
         allowed="null or a non-zero [x, y, z]",
     )  # fmt: skip
-    cone_degrees: float = setting(90.0, check=lambda v: 0 < v <= 180, allowed="in (0, 180]")
+    cone_degrees: float = setting(90.0, allows=between(0, 180, "(]"))
     box_min: tuple[float, float, float] | None = setting(
         None, check=_point_ok, allowed="null or [x, y, z]"
     )

@@ -26,6 +26,7 @@ from nbv.plan.object_estimate import EstimateSettings
 from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import EPISODE_VIEWS
 from nbv.policies.registry import IG, METHODS, networks_of
+from nbv.utils.fields import at_least, positive
 
 #: The methods a user may plan with: those that do not read the ground truth.
 PLANNABLE = tuple(name for name, m in METHODS.items() if not m.ground_truth)
@@ -36,11 +37,6 @@ INPUTS = ("give exactly one input: mesh=<mesh file> (simulated captures) or "
 
 def _null_or_positive(value: float | None) -> bool:
     return value is None or value > 0
-
-
-def _camera(camera: dict) -> Intrinsics:
-    """``camera: {width, height, focal}`` (``conf/camera/``) as the planner's intrinsics."""
-    return Intrinsics.centred(camera["width"], camera["height"], camera["focal"])
 
 
 @dataclass(frozen=True)
@@ -189,16 +185,16 @@ class PlanSettings:
     viewspace: ViewspaceSettings = setting(factory=ViewspaceSettings)
     object: ObjectSettings = setting(factory=ObjectSettings)
     candidates: CandidateSettings = setting(factory=CandidateSettings)
-    start_view: int = setting(0, check=lambda v: v >= 0, allowed="an integer >= 0")
-    n_views: int = setting(EPISODE_VIEWS, check=lambda v: v >= 2, allowed="an integer >= 2")
-    camera: Intrinsics = setting(factory=Intrinsics, config=CameraConfig, convert=_camera)
-    match_degrees: float = setting(2.0, check=lambda v: 0 <= v < 90, allowed="degrees in [0, 90)")
-    points_per_view: int = setting(
-        DEFAULT_POINTS_PER_VIEW, check=lambda v: v >= 0, allowed="an integer >= 0 (0 = all)"
+    start_view: int = setting(0, allows=at_least(0))
+    n_views: int = setting(EPISODE_VIEWS, allows=at_least(2))
+    camera: Intrinsics = setting(
+        factory=Intrinsics, config=CameraConfig, convert=Intrinsics.from_config
     )
-    eps: float = setting(DEFAULT_EPS, check=lambda v: v > 0, allowed="a positive distance")
-    n_gt: int = setting(DEFAULT_N_GT, check=lambda v: v >= 1, allowed="an integer >= 1")
-    save_captures: int = setting(0, check=lambda v: v >= 0, allowed="an integer >= 0")
+    match_degrees: float = setting(2.0, check=lambda v: 0 <= v < 90, allowed="degrees in [0, 90)")
+    points_per_view: int = setting(DEFAULT_POINTS_PER_VIEW, allows=at_least(0, note="0 = all"))
+    eps: float = setting(DEFAULT_EPS, allows=positive("distance"))
+    n_gt: int = setting(DEFAULT_N_GT, allows=at_least(1))
+    save_captures: int = setting(0, allows=at_least(0))
     captures_out: Path | None = None
     hull: PlannerSettings = setting(factory=PlannerSettings)
     ig: VolumetricSettings = setting(factory=VolumetricSettings)

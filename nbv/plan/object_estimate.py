@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nbv.utils.fields import check_ranges, setting
+from nbv.utils.fields import at_least, between, check_ranges, positive, setting
 
 log = logging.getLogger(__name__)
 
@@ -69,12 +69,12 @@ class EstimateSettings:
 
     voxel: float | None = setting(None, check=_auto, allowed=_AUTO)
     plane_distance: float | None = setting(None, check=_auto, allowed=_AUTO)
-    max_planes: int = setting(3, check=lambda v: v >= 0, allowed="an integer >= 0")
-    min_plane_share: float = setting(0.05, check=lambda v: 0 < v <= 1, allowed="in (0, 1]")
-    outlier_neighbours: int = setting(20, check=lambda v: v >= 2, allowed="an integer >= 2")
-    outlier_std: float = setting(2.0, check=lambda v: v > 0, allowed="a positive number")
+    max_planes: int = setting(3, allows=at_least(0))
+    min_plane_share: float = setting(0.05, allows=between(0, 1, "(]"))
+    outlier_neighbours: int = setting(20, allows=at_least(2))
+    outlier_std: float = setting(2.0, allows=positive())
     cluster_distance: float | None = setting(None, check=_auto, allowed=_AUTO)
-    cluster_points: int = setting(10, check=lambda v: v >= 1, allowed="an integer >= 1")
+    cluster_points: int = setting(10, allows=at_least(1))
 
     def __post_init__(self) -> None:
         check_ranges(self)

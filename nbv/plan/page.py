@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import plotly.graph_objects as go
@@ -123,6 +124,99 @@ def _check_array(name: str, array: np.ndarray, shape: tuple[int | None, ...]) ->
     return array
 
 
+def _checked_hull(hull_vertices: np.ndarray, hull_faces: np.ndarray) -> tuple:
+    """``(vertices (K, 3), faces (F, 3) int)`` checked: finite, integer faces within range.
+
+    Raises:
+        ValueError: naming the argument, the bad value and what is allowed.
+    """
+    hull_vertices = _check_array("hull_vertices", hull_vertices, (None, 3))
+    hull_faces = _check_array("hull_faces", hull_faces, (None, 3))
+    if hull_faces.dtype.kind not in "iu":
+        raise ValueError(f"hull_faces: dtype {hull_faces.dtype} is not an integer type")
+    if len(hull_faces) and (hull_faces.min() < 0 or hull_faces.max() >= len(hull_vertices)):
+        raise ValueError(
+            f"hull_faces: vertex index {int(hull_faces.max())} or {int(hull_faces.min())} is out "
+            f"of range; allowed 0..{len(hull_vertices) - 1}"
+        )
+    return hull_vertices, hull_faces
+
+
+def _camera_traces(candidates: np.ndarray, centres: np.ndarray, role: np.ndarray,
+                   depth: float) -> list:  # fmt: skip
+    """The frustums of the candidates, the visited and the chosen views (``role`` 0, 1, 2),
+    each with hover markers at the camera centres."""
+    traces = []
+    for code, name, colour, width in (
+        (0, "candidates", CANDIDATE_COLOUR, 2),
+        (1, "visited", VISITED_COLOUR, 4),
+        (2, "chosen", CHOSEN_COLOUR, 5),
+    ):
+        ids = np.flatnonzero(role == code)
+        lines = frustum_segments(candidates[ids].astype(np.float64), depth)
+        traces.append(
+            go.Scatter3d(
+                x=lines[:, 0], y=lines[:, 1], z=lines[:, 2], mode="lines", name=name,
+                line={"color": colour, "width": width}, hoverinfo="skip", legendgroup=name,
+            )
+        )  # fmt: skip
+        # Invisible-in-legend markers at the centres carry the hover text "view <index>".
+        traces.append(
+            go.Scatter3d(
+                x=centres[ids, 0], y=centres[ids, 1], z=centres[ids, 2], mode="markers",
+                marker={"size": 3, "color": colour}, name=name, legendgroup=name,
+                showlegend=False, hovertext=[f"view {v}" for v in ids], hoverinfo="text",
+            )
+        )  # fmt: skip
+    return traces
+
+
+def _cloud_and_hull(drawn: np.ndarray, hull_vertices: np.ndarray, hull_faces: np.ndarray) -> list:
+    """The cloud's markers and the hull's semi-transparent mesh."""
+    return [
+        go.Scatter3d(
+            x=drawn[:, 0], y=drawn[:, 1], z=drawn[:, 2], mode="markers", name="cloud",
+            marker={"size": 2, "color": POINT_COLOUR}, hoverinfo="skip",
+        ),
+        go.Mesh3d(
+            x=hull_vertices[:, 0], y=hull_vertices[:, 1], z=hull_vertices[:, 2],
+            i=hull_faces[:, 0], j=hull_faces[:, 1], k=hull_faces[:, 2], name="hull",
+            color=HULL_COLOUR, opacity=0.25, showlegend=True, hoverinfo="skip",
+        ),
+    ]  # fmt: skip
+
+
+def _laid_out(figure: go.Figure, title: str, up: str) -> go.Figure:
+    """``figure`` titled, on the page's background, with ``up`` kept up on screen."""
+    x, y, z = UP_AXES[up]
+    figure.update_layout(
+        title={"text": title},
+        paper_bgcolor=BACKGROUND_COLOUR,
+        margin={"l": 0, "r": 0, "t": 40, "b": 0},
+        scene={
+            "aspectmode": "data",
+            "camera": {"up": {"x": x, "y": y, "z": z}},
+            "bgcolor": BACKGROUND_COLOUR,
+        },
+        legend={"itemsizing": "constant"},
+    )
+    return figure
+
+
+def _order_trace(centres: np.ndarray, chosen_ids: np.ndarray) -> go.Scatter3d:
+    """The chosen views' path, numbered 1..n at their camera centres."""
+    path = centres[chosen_ids]
+    return go.Scatter3d(
+        x=path[:, 0], y=path[:, 1], z=path[:, 2], mode="lines+markers+text", name="order",
+        line={"color": CHOSEN_COLOUR, "width": 3, "dash": "dash"},
+        marker={"size": 5, "color": CHOSEN_COLOUR},
+        text=[str(i + 1) for i in range(len(chosen_ids))],
+        textposition="top center", textfont={"size": 16, "color": "#000000"},
+        hovertext=[f"#{i + 1}: view {v}" for i, v in enumerate(chosen_ids)],
+        hoverinfo="text",
+    )  # fmt: skip
+
+
 def build_plan_figure(
     *,
     points: np.ndarray,
@@ -165,19 +259,11 @@ def build_plan_figure(
     if up not in UP_AXES:
         raise ValueError(f"up: {up!r} is not one of {sorted(UP_AXES)}")
     points = _check_array("points", points, (None, 3))
-    hull_vertices = _check_array("hull_vertices", hull_vertices, (None, 3))
-    hull_faces = _check_array("hull_faces", hull_faces, (None, 3))
+    hull_vertices, hull_faces = _checked_hull(hull_vertices, hull_faces)
     candidates = _check_array("candidates", candidates, (None, 4, 4))
     n_views = len(candidates)
     if n_views == 0:
         raise ValueError("candidates: no camera poses; at least one is needed")
-    if hull_faces.dtype.kind not in "iu":
-        raise ValueError(f"hull_faces: dtype {hull_faces.dtype} is not an integer type")
-    if len(hull_faces) and (hull_faces.min() < 0 or hull_faces.max() >= len(hull_vertices)):
-        raise ValueError(
-            f"hull_faces: vertex index {int(hull_faces.max())} or {int(hull_faces.min())} is out "
-            f"of range; allowed 0..{len(hull_vertices) - 1}"
-        )
     chosen_ids = _check_indices("chosen", chosen, n_views)
     visited_ids = _check_indices("visited", visited, n_views)
     if len(np.unique(chosen_ids)) != len(chosen_ids):
@@ -194,111 +280,31 @@ def build_plan_figure(
     role = np.zeros(n_views, dtype=np.int8)  # 0 candidate, 1 visited, 2 chosen
     role[visited_ids] = 1
     role[chosen_ids] = 2
-    traces: list[go.BaseTraceType] = [
-        go.Scatter3d(
-            x=drawn[:, 0], y=drawn[:, 1], z=drawn[:, 2], mode="markers", name="cloud",
-            marker={"size": 2, "color": POINT_COLOUR}, hoverinfo="skip",
-        ),
-        go.Mesh3d(
-            x=hull_vertices[:, 0], y=hull_vertices[:, 1], z=hull_vertices[:, 2],
-            i=hull_faces[:, 0], j=hull_faces[:, 1], k=hull_faces[:, 2], name="hull",
-            color=HULL_COLOUR, opacity=0.25, showlegend=True, hoverinfo="skip",
-        ),
-    ]  # fmt: skip
-    for code, name, colour, width in (
-        (0, "candidates", CANDIDATE_COLOUR, 2),
-        (1, "visited", VISITED_COLOUR, 4),
-        (2, "chosen", CHOSEN_COLOUR, 5),
-    ):
-        ids = np.flatnonzero(role == code)
-        lines = frustum_segments(candidates[ids].astype(np.float64), depth)
-        traces.append(
-            go.Scatter3d(
-                x=lines[:, 0], y=lines[:, 1], z=lines[:, 2], mode="lines", name=name,
-                line={"color": colour, "width": width}, hoverinfo="skip", legendgroup=name,
-            )
-        )  # fmt: skip
-        # Invisible-in-legend markers at the centres carry the hover text "view <index>".
-        traces.append(
-            go.Scatter3d(
-                x=centres[ids, 0], y=centres[ids, 1], z=centres[ids, 2], mode="markers",
-                marker={"size": 3, "color": colour}, name=name, legendgroup=name,
-                showlegend=False, hovertext=[f"view {v}" for v in ids], hoverinfo="text",
-            )
-        )  # fmt: skip
+    traces: list[go.BaseTraceType] = _cloud_and_hull(drawn, hull_vertices, hull_faces)
+    traces += _camera_traces(candidates, centres, role, depth)
+    rest = None
     if surroundings is not None and len(surroundings):
-        rest = subsample_evenly(
-            _check_array("surroundings", surroundings, (None, 3)).astype(np.float32), max_points
-        )
-        traces_rest = go.Scatter3d(
+        rest = _check_array("surroundings", surroundings, (None, 3))
+    traces.append(_order_trace(centres, chosen_ids))
+    if rest is not None:
+        rest = subsample_evenly(rest.astype(np.float32), max_points)
+        traces.append(go.Scatter3d(
             x=rest[:, 0], y=rest[:, 1], z=rest[:, 2], mode="markers", name="surroundings",
             marker={"size": 1.5, "color": SURROUNDINGS_COLOUR, "opacity": 0.3}, hoverinfo="skip",
-        )  # fmt: skip
-    else:
-        traces_rest = None
-    path = centres[chosen_ids]
-    traces.append(
-        go.Scatter3d(
-            x=path[:, 0], y=path[:, 1], z=path[:, 2], mode="lines+markers+text", name="order",
-            line={"color": CHOSEN_COLOUR, "width": 3, "dash": "dash"},
-            marker={"size": 5, "color": CHOSEN_COLOUR},
-            text=[str(i + 1) for i in range(len(chosen_ids))],
-            textposition="top center", textfont={"size": 16, "color": "#000000"},
-            hovertext=[f"#{i + 1}: view {v}" for i, v in enumerate(chosen_ids)],
-            hoverinfo="text",
-        )
-    )  # fmt: skip
-
-    if traces_rest is not None:
-        traces.append(traces_rest)
-    x, y, z = UP_AXES[up]
-    figure = go.Figure(data=traces)
-    figure.update_layout(
-        title={"text": title},
-        paper_bgcolor=BACKGROUND_COLOUR,
-        margin={"l": 0, "r": 0, "t": 40, "b": 0},
-        scene={
-            "aspectmode": "data",
-            "camera": {"up": {"x": x, "y": y, "z": z}},
-            "bgcolor": BACKGROUND_COLOUR,
-        },
-        legend={"itemsizing": "constant"},
-    )
-    return figure
+        ))  # fmt: skip
+    return _laid_out(go.Figure(data=traces), title, up)
 
 
-def write_plan_page(
-    path: Path,
-    *,
-    points: np.ndarray,
-    hull_vertices: np.ndarray,
-    hull_faces: np.ndarray,
-    candidates: np.ndarray,
-    chosen: Sequence[int],
-    visited: Sequence[int],
-    title: str,
-    up: str = "y",
-    surroundings: np.ndarray | None = None,
-) -> None:
+def write_plan_page(path: Path, **scene: Any) -> None:
     """Write the plan's self-contained interactive page to ``path`` (whole or not at all).
 
-    Arguments as in :func:`build_plan_figure`. plotly.js is embedded, so the file opens from disk
-    with no network. The page fills the browser window.
+    ``scene``: the keyword arguments of :func:`build_plan_figure`. plotly.js is embedded, so the
+    file opens from disk with no network. The page fills the browser window.
 
     Raises:
         ValueError: bad input, one message naming the argument; nothing is written then.
     """
-    figure = build_plan_figure(
-        points=points,
-        hull_vertices=hull_vertices,
-        hull_faces=hull_faces,
-        candidates=candidates,
-        chosen=chosen,
-        visited=visited,
-        title=title,
-        up=up,
-        surroundings=surroundings,
-    )
+    figure = build_plan_figure(**scene)
     html = figure.to_html(
         include_plotlyjs=True,
         full_html=True,

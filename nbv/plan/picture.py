@@ -16,6 +16,26 @@ from nbv.utils.atomic import atomic_path
 MAX_POINTS = 6000
 
 
+def _frame(ax, centres: np.ndarray, focus: tuple[np.ndarray, float] | None,
+           order: list[int]) -> None:  # fmt: skip
+    """Equal axes holding the cameras ``centres`` (drawn axes) and the ``focus`` region (world
+    frame), labelled with the world axes ``order`` put on them."""
+    lo, hi = centres.min(axis=0), centres.max(axis=0)
+    if focus is not None:
+        # Framed on the object's region and the cameras: the room around them is cut off.
+        middle, radius = np.asarray(focus[0])[order], float(focus[1])
+        lo, hi = np.minimum(lo, middle - radius), np.maximum(hi, middle + radius)
+    mid, half = 0.5 * (lo + hi), 0.55 * float((hi - lo).max() or 1.0)
+    ax.set_xlim(mid[0] - half, mid[0] + half)
+    ax.set_ylim(mid[1] - half, mid[1] + half)
+    ax.set_zlim(mid[2] - half, mid[2] + half)
+    ax.set_box_aspect((1, 1, 1))
+    names = np.array(["x", "y", "z"])[order]
+    ax.set_xlabel(names[0])
+    ax.set_ylabel(names[1])
+    ax.set_zlabel(names[2])
+
+
 def draw_plan(
     path: Path,
     points: np.ndarray,
@@ -83,20 +103,7 @@ def draw_plan(
                   linewidth=0.8)  # fmt: skip
     for k, v in enumerate(chosen, start=1):
         ax.text(*centres[v], f" {k}", color="#d62728", fontsize=9)
-    lo, hi = centres.min(axis=0), centres.max(axis=0)
-    if focus is not None:
-        # Framed on the object's region and the cameras: the room around them is cut off.
-        middle, radius = np.asarray(focus[0])[order], float(focus[1])
-        lo, hi = np.minimum(lo, middle - radius), np.maximum(hi, middle + radius)
-    mid, half = 0.5 * (lo + hi), 0.55 * float((hi - lo).max() or 1.0)
-    ax.set_xlim(mid[0] - half, mid[0] + half)
-    ax.set_ylim(mid[1] - half, mid[1] + half)
-    ax.set_zlim(mid[2] - half, mid[2] + half)
-    ax.set_box_aspect((1, 1, 1))
-    names = np.array(["x", "y", "z"])[order]
-    ax.set_xlabel(names[0])
-    ax.set_ylabel(names[1])
-    ax.set_zlabel(names[2])
+    _frame(ax, centres, focus, order)
     ax.set_title(title, fontsize=10)
     ax.legend(loc="upper left", fontsize=8)
     with atomic_path(path) as tmp:

@@ -19,7 +19,7 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.geometry.viewspace_generators import up_rotation
 from nbv.plan.candidates import declared_plane, limit_candidates
-from nbv.plan.captures import Capture, CaptureError, check_views_see, read_captures
+from nbv.plan.captures import Capture, CaptureError, check_views_see
 from nbv.plan.config import PlanSettings
 from nbv.plan.frame import ObjectFrame, candidate_poses, object_frame
 from nbv.plan.object_estimate import (
@@ -108,17 +108,6 @@ def place_object(
     frame = object_frame(settings, np.asarray(center, dtype=np.float64), float(radius))
     check_views_see(captures, frame.center, frame.radius, settings.camera)
     return frame, source, estimate
-
-
-def load_captures_and_frame(settings: PlanSettings) -> tuple[list[Capture], ObjectFrame, bool]:
-    """Read the captures and place the object (:func:`place_object`).
-
-    Returns:
-        ``(captures, frame, estimated)``.
-    """
-    captures, given = read_captures(settings.captures)
-    frame, source, _ = place_object(settings, captures, given)
-    return captures, frame, source == "estimated"
 
 
 def support_of(

@@ -15,12 +15,12 @@ after every view, so :class:`Planner` keeps what does not change between decisio
   rays, traced once.
 
 Each view is read as a capture file would be (:func:`nbv.plan.captures.depth_capture`,
-:func:`~nbv.plan.captures.cloud_capture`) and matched to a candidate as
-:func:`nbv.plan.next_view.plan_captures` matches them, so the planner's choices are the command's
-on the same views. :meth:`Planner.save` writes a capture folder (``views.json``, one file a view)
-with ``planner.json`` beside it (the settings, the frame and the support found), and
-:meth:`Planner.load` resumes from it: the same next view as before the crash for the methods that
-draw nothing at random (every method but ``random``).
+:func:`~nbv.plan.captures.cloud_capture`) and matched to a candidate; ``python -m nbv.plan
+captures=...`` loads a folder with :meth:`Planner.load` and decides once, so the planner's choices
+are the command's on the same views. :meth:`Planner.save` writes a capture folder (``views.json``,
+one file a view) with ``planner.json`` beside it (the settings, the frame and the support found),
+and :meth:`Planner.load` resumes from it: the same next view as before the crash for the methods
+that draw nothing at random (every method but ``random``).
 """
 
 from __future__ import annotations

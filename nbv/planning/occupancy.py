@@ -40,7 +40,7 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics, project, rays_through
 from nbv.planning.raytrace import flat_index, traverse
-from nbv.utils.fields import ConfigError, check_ranges, setting
+from nbv.utils.fields import ConfigError, between, check_ranges, or_null, positive, setting
 
 #: Voxel states of :meth:`OccupancyMap.labels` (OctoMap's getLabels values).
 UNKNOWN, FREE, OCCUPIED = -1, 0, 1
@@ -68,17 +68,15 @@ class OccupancySettings:
             unknown, as in OctoMap.
     """
 
-    resolution: float = setting(0.02, check=lambda v: 0 < v <= 0.5, allowed="in (0, 0.5]")
+    resolution: float = setting(0.02, allows=between(0, 0.5, "(]"))
     bound: float = setting(
         0.56, check=lambda v: v >= 0.5, allowed=">= 0.5 (the object fits in radius 0.5)"
     )
-    p_hit: float = setting(0.7, check=lambda v: 0.5 < v < 1, allowed="in (0.5, 1)")
-    p_miss: float = setting(0.4, check=lambda v: 0 < v < 0.5, allowed="in (0, 0.5)")
-    clamp_min: float = setting(0.1192, check=lambda v: 0 < v < 0.5, allowed="in (0, 0.5)")
-    clamp_max: float = setting(0.971, check=lambda v: 0.5 < v < 1, allowed="in (0.5, 1)")
-    object_radius: float | None = setting(
-        0.5, check=lambda v: v is None or v > 0, allowed="null or a positive distance"
-    )
+    p_hit: float = setting(0.7, allows=between(0.5, 1, "()"))
+    p_miss: float = setting(0.4, allows=between(0, 0.5, "()"))
+    clamp_min: float = setting(0.1192, allows=between(0, 0.5, "()"))
+    clamp_max: float = setting(0.971, allows=between(0.5, 1, "()"))
+    object_radius: float | None = setting(0.5, allows=or_null(positive("distance")))
 
     def __post_init__(self) -> None:
         check_ranges(self)

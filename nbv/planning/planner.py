@@ -44,69 +44,6 @@ def _as_viewspace(viewspace: np.ndarray) -> np.ndarray:
     return arr
 
 
-def _plan_on_cloud(
-    points: np.ndarray,
-    viewspace: np.ndarray,
-    n_iter: int,
-    exclude: Iterable[int],
-    rng: np.random.Generator | int,
-    settings: PlannerSettings,
-    intrinsics: Intrinsics,
-    eps: float,
-    poses: np.ndarray | None,
-    timings: dict[str, float],
-) -> Plan:
-    """Algorithms 2 and 3 on the hull of ``points``; adds its stage times to ``timings``."""
-    viewspace = _as_viewspace(viewspace)
-    excluded = as_exclude(exclude, len(viewspace))
-    clock = time.perf_counter
-    t0 = clock()
-    hull = convex_hull(points)
-    t1 = clock()
-    if isinstance(rng, int | np.integer) and not isinstance(rng, bool):
-        rng = np.random.default_rng(int(rng))  # as sample_on_hull makes it: the same draws
-    samples, normals, face_ids = sample_on_hull(hull, settings.n_samp, rng)
-    # The fill's tie-break gets a child generator: spawning draws nothing from ``rng`` (it
-    # advances the spawn counter of its seed sequence only), so the hull samples, and with them
-    # the covering picks, are what they were before the fill was randomised; each plan from
-    # one generator gets a fresh child.
-    fill_rng = rng.spawn(1)[0]
-    t2 = clock()
-    poses = viewspace_poses(viewspace) if poses is None else as_poses(poses)
-    if len(poses) != len(viewspace):
-        raise ValueError(f"poses has {len(poses)} cameras, the viewspace {len(viewspace)}")
-    sets = view_sets(
-        samples,
-        normals,
-        poses,
-        intrinsics,
-        settings.simulation,
-        eps,
-        hull,
-        face_ids,
-        settings.dilate,
-    )
-    t3 = clock()
-    rows = pack_sets(sets)
-    t4 = clock()
-    views, gains, n_covered = greedy_packed(rows, n_iter, excluded, viewspace, fill_rng)
-    t5 = clock()
-    for key, seconds in (
-        ("hull", t1 - t0),
-        ("sampling", t2 - t1),
-        ("simulation", t3 - t2),
-        ("sets", t4 - t3),
-        ("greedy", t5 - t4),
-    ):
-        timings[key] = timings.get(key, 0.0) + seconds
-    timings["total"] = sum(
-        timings[k]
-        for k in ("signature", "hull", "sampling", "simulation", "sets", "greedy")
-        if k in timings
-    )
-    return Plan(views, gains, n_covered / len(samples), timings)
-
-
 def plan(
     points: np.ndarray,
     viewspace: np.ndarray,
@@ -153,9 +90,35 @@ def plan(
         ValueError: for a cloud whose hull has no volume (flat, colinear, fewer than 4 points)
             and for bad arguments.
     """
-    return _plan_on_cloud(
-        points, viewspace, n_iter, exclude, rng, settings, intrinsics, eps, poses, {}
-    )
+    viewspace = _as_viewspace(viewspace)
+    excluded = as_exclude(exclude, len(viewspace))
+    clock = time.perf_counter
+    t0 = clock()
+    hull = convex_hull(points)
+    t1 = clock()
+    if isinstance(rng, int | np.integer) and not isinstance(rng, bool):
+        rng = np.random.default_rng(int(rng))  # as sample_on_hull makes it: the same draws
+    samples, normals, face_ids = sample_on_hull(hull, settings.n_samp, rng)
+    # The fill's tie-break gets a child generator: spawning draws nothing from ``rng`` (it
+    # advances the spawn counter of its seed sequence only), so the hull samples, and with them
+    # the covering picks, are what they were before the fill was randomised; each plan from
+    # one generator gets a fresh child.
+    fill_rng = rng.spawn(1)[0]
+    t2 = clock()
+    poses = viewspace_poses(viewspace) if poses is None else as_poses(poses)
+    if len(poses) != len(viewspace):
+        raise ValueError(f"poses has {len(poses)} cameras, the viewspace {len(viewspace)}")
+    sets = view_sets(samples, normals, poses, intrinsics, settings.simulation, eps, hull,
+                     face_ids, settings.dilate)  # fmt: skip
+    t3 = clock()
+    rows = pack_sets(sets)
+    t4 = clock()
+    views, gains, n_covered = greedy_packed(rows, n_iter, excluded, viewspace, fill_rng)
+    t5 = clock()
+    timings = {"hull": t1 - t0, "sampling": t2 - t1, "simulation": t3 - t2, "sets": t4 - t3,
+               "greedy": t5 - t4}  # fmt: skip
+    timings["total"] = sum(timings.values())
+    return Plan(views, gains, n_covered / len(samples), timings)
 
 
 def sph_hull_points(points: np.ndarray, lmax: int = 3) -> np.ndarray:
@@ -182,29 +145,3 @@ def sph_hull_points(points: np.ndarray, lmax: int = 3) -> np.ndarray:
     radius = np.einsum("ij,ij->i", signature.astype(np.float64), directions)  # signed
     extent = float(np.linalg.norm(cloud - centroid, axis=1).max())
     return np.clip(radius, 0.0, extent)[:, None] * directions + centroid
-
-
-def plan_sph(
-    points: np.ndarray,
-    viewspace: np.ndarray,
-    n_iter: int = DEFAULT_N_ITER,
-    exclude: Iterable[int] = (),
-    rng: np.random.Generator | int = 0,
-    settings: PlannerSettings = PlannerSettings(),  # noqa: B008 - frozen dataclass
-    intrinsics: Intrinsics = Intrinsics(),  # noqa: B008 - frozen dataclass, immutable default
-    eps: float = DEFAULT_EPS,
-    poses: np.ndarray | None = None,
-) -> Plan:
-    """Convex-hull set cover on the hull of the cloud's spherical signature.
-
-    Same as :func:`plan` (``settings.dilate`` included: off by default, see there for its cost),
-    but the hull is that of :func:`sph_hull_points` (the signature of degree ``settings.lmax``
-    placed at the cloud's centroid) instead of the cloud's own. ``timings`` gets a ``signature``
-    entry too.
-    """
-    t0 = time.perf_counter()
-    signature = sph_hull_points(points, settings.lmax)
-    timings = {"signature": time.perf_counter() - t0}
-    return _plan_on_cloud(
-        signature, viewspace, n_iter, exclude, rng, settings, intrinsics, eps, poses, timings
-    )

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 from nbv.planning.information_gain import METRICS
 from nbv.planning.occupancy import OccupancySettings
-from nbv.utils.fields import check_ranges, setting
+from nbv.utils.fields import at_least, check_ranges, one_of, setting
 
 #: View simulations of the planner: ``analytic`` (exact for a convex hull, fast) or ``raycast``
 #: (renders the hull, about 100x slower).
@@ -35,15 +35,13 @@ class PlannerSettings:
             view fewer for the set cover's plan.
     """
 
-    n_samp: int = setting(16384, check=lambda v: v >= 1, allowed="an integer >= 1")
-    simulation: str = setting(
-        "analytic", check=lambda v: v in SIMULATIONS, allowed=f"one of {', '.join(SIMULATIONS)}"
-    )
+    n_samp: int = setting(16384, allows=at_least(1))
+    simulation: str = setting("analytic", allows=one_of(SIMULATIONS))
     dilate: bool = False
-    lmax: int = setting(3, check=lambda v: v >= 0, allowed="an integer >= 0")
-    probes: int = setting(3, check=lambda v: v >= 0, allowed="an integer >= 0")
-    probe_points: int = setting(100, check=lambda v: v >= 1, allowed="an integer >= 1")
-    network_views: int = setting(2, check=lambda v: v >= 0, allowed="an integer >= 0")
+    lmax: int = setting(3, allows=at_least(0))
+    probes: int = setting(3, allows=at_least(0))
+    probe_points: int = setting(100, allows=at_least(1))
+    network_views: int = setting(2, allows=at_least(0))
 
     def __post_init__(self) -> None:
         check_ranges(self)
@@ -74,12 +72,10 @@ class VolumetricSettings:
 
     resolution: float = 0.02
     bound: float = 0.56
-    columns: int = setting(16, check=lambda v: v >= 1, allowed="an integer >= 1")
-    metric: str = setting(
-        "unobserved", check=lambda v: v in METRICS, allowed=f"one of {', '.join(METRICS)}"
-    )
-    depth: int = setting(0, check=lambda v: v >= 0, allowed="an integer >= 0 (voxels; 0: no cap)")
-    block: int = setting(16, check=lambda v: v >= 1, allowed="an integer >= 1 (pixels)")
+    columns: int = setting(16, allows=at_least(1))
+    metric: str = setting("unobserved", allows=one_of(METRICS))
+    depth: int = setting(0, allows=at_least(0, note="voxels; 0: no cap"))
+    block: int = setting(16, allows=at_least(1, note="pixels"))
     spread_weight: float = setting(0.0, check=lambda v: v >= 0, allowed=">= 0")
 
     def __post_init__(self) -> None:

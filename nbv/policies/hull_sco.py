@@ -45,12 +45,12 @@ class HullSCOPolicy:
     """Convex-hull set cover, one-shot (the paper's Algorithms 2 and 3).
 
     On the first call, with ``probes == 0``: plan every remaining view from the start view's
-    cloud (:func:`nbv.planning.planner.plan`, or :func:`nbv.planning.planner.plan_sph` with
-    ``sph``), excluding the
-    visited views, and return the plan; the episode takes it in order. With ``probes = k``:
-    first return ``k`` seeded random unvisited views (they count in the episode); on the next
-    call plan from the start view's cloud plus ``probe_points`` random points of each probe
-    view (``settings.probe_points``; the paper's "three random views with 100 points").
+    cloud (:func:`nbv.planning.planner.plan`; with ``sph``, on the hull of
+    :func:`nbv.planning.planner.sph_hull_points`), excluding the visited views, and return the
+    plan; the episode takes it in order. With ``probes = k``: first return ``k`` seeded random
+    unvisited views (they count in the episode); on the next call plan from the start view's
+    cloud plus ``probe_points`` random points of each probe view (``settings.probe_points``;
+    the paper's "three random views with 100 points").
 
     A cloud whose hull has no volume (a flat object, a view that saw a plane) is planned on
     :func:`thicken`'s slab around it, and a note says so.

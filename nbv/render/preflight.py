@@ -143,6 +143,31 @@ def _check_depth(who: str, depth: np.ndarray, expected: np.ndarray) -> None:
         )
 
 
+def _reported_info(who: str, blender: str | None, run: subprocess.CompletedProcess) -> dict:
+    """The ``NBV-INFO`` line of a preflight run that rendered the test cube.
+
+    Raises:
+        PreflightError: the script reported a failure, never ran, or died before it was done.
+    """
+    lines = run.stdout.splitlines()
+    info = next((_parse_info(x) for x in lines if x.startswith("NBV-INFO ")), None)
+    tail = " | ".join(run.stderr.strip().splitlines()[-_TAIL_LINES:])
+    for line in lines:
+        tag, _, rest = line.partition(" ")
+        if tag == "NBV-FATAL":
+            raise PreflightError(f"{who}: {rest}")
+        if tag == "NBV-FAIL":
+            raise PreflightError(f"{who} failed on the test cube: {rest}")
+    if info is None:
+        raise PreflightError(_no_script_message(who, blender, run.returncode, tail))
+    if "NBV-DONE preflight" not in lines:
+        raise PreflightError(
+            f"{who} (Blender {info.get('blender')}) died on the test cube "
+            f"({exit_reason(run.returncode)}); last lines of its output: {tail}"
+        )
+    return info
+
+
 def check_blender(
     blender: str | None,
     threads: int = 0,
@@ -197,22 +222,7 @@ def check_blender(
             ) from None
         except OSError as err:
             raise PreflightError(f"{who} cannot be started: {err}") from None
-        lines = run.stdout.splitlines()
-        info = next((_parse_info(x) for x in lines if x.startswith("NBV-INFO ")), None)
-        tail = " | ".join(run.stderr.strip().splitlines()[-_TAIL_LINES:])
-        for line in lines:
-            tag, _, rest = line.partition(" ")
-            if tag == "NBV-FATAL":
-                raise PreflightError(f"{who}: {rest}")
-            if tag == "NBV-FAIL":
-                raise PreflightError(f"{who} failed on the test cube: {rest}")
-        if info is None:
-            raise PreflightError(_no_script_message(who, blender, run.returncode, tail))
-        if "NBV-DONE preflight" not in lines:
-            raise PreflightError(
-                f"{who} (Blender {info.get('blender')}) died on the test cube "
-                f"({exit_reason(run.returncode)}); last lines of its output: {tail}"
-            )
+        info = _reported_info(who, blender, run)
         depth = np.load(staged.out)
     _check_depth(who, depth[0], expected)
     result = BlenderInfo(

@@ -8,10 +8,7 @@ from pathlib import Path
 
 from nbv.config.schema import PathsConfig
 from nbv.config.settings import Entry, check_ranges, setting
-
-
-def _at_least(low: int) -> dict:
-    return dict(check=lambda v: v >= low, allowed=f"an integer >= {low}")
+from nbv.utils.fields import at_least
 
 
 @dataclass(frozen=True)
@@ -29,9 +26,9 @@ class PreviewSettings:
     """
 
     preview: Path = field(kw_only=True)
-    seed: int = setting(0, **_at_least(0))
-    per_category: int = setting(4, **_at_least(1))
-    tile: int = setting(160, **_at_least(8))
+    seed: int = setting(0, allows=at_least(0))
+    per_category: int = setting(4, allows=at_least(1))
+    tile: int = setting(160, allows=at_least(8))
 
     def __post_init__(self) -> None:
         check_ranges(self)

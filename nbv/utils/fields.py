@@ -11,8 +11,51 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+
+@dataclass(frozen=True)
+class Allows:
+    """What a setting allows: the check and its words, declared once (:func:`at_least`,
+    :func:`positive`, :func:`between`, :func:`one_of`, :func:`or_null`)."""
+
+    test: Callable[[Any], bool]
+    words: str
+
+    def __call__(self, value: Any) -> bool:
+        return bool(self.test(value))
+
+
+def at_least(low: float, kind: str = "an integer", note: str = "") -> Allows:
+    """``value >= low``: "an integer >= 1", "a distance >= 0", "an integer >= 0 (0 = all)"."""
+    return Allows(lambda v: v >= low, f"{kind} >= {low}" + (f" ({note})" if note else ""))
+
+
+def positive(kind: str = "number") -> Allows:
+    """``value > 0``: "a positive number", "a positive distance"."""
+    return Allows(lambda v: v > 0, f"a positive {kind}")
+
+
+def between(low: float, high: float, closed: str = "[]") -> Allows:
+    """``low <= value <= high``; ``closed`` says which ends belong ("[]", "()", "[)", "(]"), and
+    the words are the interval: "in [0, 1]", "in (0.5, 1)"."""
+    if len(closed) != 2 or closed[0] not in "[(" or closed[1] not in "])":
+        raise ValueError(f"between(): closed={closed!r}: must be two of [ ( and ] )")
+    above = (lambda v: v >= low) if closed[0] == "[" else (lambda v: v > low)
+    below = (lambda v: v <= high) if closed[1] == "]" else (lambda v: v < high)
+    return Allows(lambda v: above(v) and below(v), f"in {closed[0]}{low}, {high}{closed[1]}")
+
+
+def one_of(names: tuple[str, ...], hint: str = "") -> Allows:
+    """``value in names``: "one of a, b, c" (and ``hint``, written right after)."""
+    return Allows(lambda v: v in names, f"one of {', '.join(names)}{hint}")
+
+
+def or_null(allows: Allows) -> Allows:
+    """None, or what ``allows`` allows: "null or an integer >= 1"."""
+    return Allows(lambda v: v is None or allows(v), f"null or {allows.words}")
 
 
 class ConfigError(ValueError):
@@ -23,6 +66,7 @@ def setting(
     default: Any = dataclasses.MISSING,
     *,
     factory: Callable[[], Any] | None = None,
+    allows: Allows | None = None,
     check: Callable[[Any], bool] | None = None,
     allowed: str | None = None,
     key: str | None = None,
@@ -35,6 +79,8 @@ def setting(
     Args:
         default: the default value (omit for a required key).
         factory: a default factory instead of ``default`` (for mutable or nested defaults).
+        allows: what the field allows, check and words together (:class:`Allows`); ``check``
+            and ``allowed`` are the same spelled apart, for a rule the vocabulary lacks.
         check: True for an allowed value (null is passed too when the type allows it).
         allowed: what ``check`` allows, in words (``"an integer >= 1"``).
         key: the YAML key, when it is not the field's name.
@@ -44,6 +90,10 @@ def setting(
     """
     if (check is None) != (allowed is None):
         raise TypeError("setting(): give check and allowed together")
+    if allows is not None:
+        if check is not None:
+            raise TypeError("setting(): give allows, or check and allowed, not both")
+        check, allowed = allows, allows.words
     metadata = {
         name: value
         for name, value in (
