@@ -15,14 +15,15 @@ from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics, project
 from nbv.geometry.scores import DEFAULT_EPS
+from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.config import PlanSettings
 from nbv.plan.method import policy_rng
 from nbv.plan.planner import Planner
 from nbv.plan.result import PlanResult
-from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import run_episode
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
+from nbv.setcover.settings import HullSettings
 
 CAMERA = Intrinsics.centred(64, 48, 48.0)
 EPS = DEFAULT_EPS
@@ -50,7 +51,7 @@ def episode_views(model, method: str) -> list[int]:
     networks = {}
     if NETWORK_INPUTS.get(method) == "directions":
         networks[method] = ConditionedPolicy.from_checkpoint(shipped_weights(method))
-    ctx = MethodContext(networks, PlannerSettings(), CAMERA, EPS, 10, VolumetricSettings())
+    ctx = MethodContext(networks, HullSettings(), CAMERA, EPS, 10, VolumetricSettings())
     policy = METHODS[method].build(ctx, policy_rng(0, method))
     return run_episode(model, "original", START, policy, 10).views
 

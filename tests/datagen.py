@@ -10,7 +10,7 @@ from nbv.dataset.generate import generate
 from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
 from nbv.dataset.samples import SampleSettings, write_samples
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.settings import VolumetricSettings
+from nbv.infogain.settings import VolumetricSettings
 
 SMALL_CAMERA = Intrinsics.centred(64, 48, 48.0)
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from nbv.eval.config import DisturbSettings, EvalSettings
-from nbv.planning.settings import PlannerSettings
 from nbv.policies.registry import CHECKS, NETWORK_INPUTS
+from nbv.setcover.settings import HullSettings
 
 #: The start views of the tiny evaluations.
 STARTS = (1, 24)
@@ -24,7 +24,7 @@ def tiny_settings(
         start_views=STARTS,
         disturb=DisturbSettings(checks=checks, start_views=disturb_start_views),
         checkpoints={name: str(tiny[name]) for name in NETWORK_INPUTS},
-        hull=PlannerSettings(n_samp=2048),
+        hull=HullSettings(n_samp=2048),
         progress=False,
     )
     base.update(kw)

@@ -5,9 +5,9 @@ import numpy as np
 import trimesh
 
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
-from nbv.planning.information_gain import candidate_voxels
-from nbv.planning.occupancy import OccupancyMap, background_directions
-from nbv.planning.settings import VolumetricSettings
+from nbv.infogain.gain import candidate_voxels
+from nbv.infogain.occupancy import OccupancyMap, background_directions
+from nbv.infogain.settings import VolumetricSettings
 from nbv.render.raycast import render_raycast
 
 

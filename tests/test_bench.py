@@ -6,7 +6,7 @@ import pytest
 from nbv.bench.suite import format_table, numpy_fps, python_greedy, scipy_signature
 from nbv.geometry.clouds import farthest_points
 from nbv.geometry.sph import signature
-from nbv.planning.set_cover import greedy_max_coverage
+from nbv.setcover.greedy import greedy_max_coverage
 
 
 def test_numpy_fps_equals_fpsample():

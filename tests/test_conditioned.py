@@ -14,6 +14,8 @@ from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.geometry.scores import coverage_gains
+from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.view_features import FEATURES
 from nbv.models.checkpoints import CheckpointError
 from nbv.models.view_conditioned import (
     ConditionedConfig,
@@ -21,8 +23,6 @@ from nbv.models.view_conditioned import (
     load_conditioned,
     save_conditioned,
 )
-from nbv.planning.settings import VolumetricSettings
-from nbv.planning.view_features import FEATURES
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.volumetric import InformationGainPolicy

@@ -9,9 +9,9 @@ from shapes import cube_corners, fibonacci_sphere
 from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import original_viewspace
-from nbv.planning.dilation import NearTriangles, dilate_view_sets, near_triangles
-from nbv.planning.hull_sampling import convex_hull, sample_on_hull
-from nbv.planning.view_sets import view_sets
+from nbv.setcover.dilation import NearTriangles, dilate_view_sets, near_triangles
+from nbv.setcover.hull_sampling import convex_hull, sample_on_hull
+from nbv.setcover.view_sets import view_sets
 
 K = Intrinsics()
 

@@ -41,21 +41,22 @@ from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
 from nbv.geometry.reconstruction import cloud_scores
 from nbv.geometry.scores import coverage_from_bits
 from nbv.geometry.viewspace import spread_views
-from nbv.planning.gain_scorer import GainScorer, ScorerError, save_scorer
-from nbv.planning.settings import PlannerSettings, VolumetricSettings
-from nbv.planning.view_features import FEATURES
+from nbv.infogain.gain_scorer import GainScorer, ScorerError, save_scorer
+from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     CHECKS,
     DEFAULT_METHODS,
-    PLANNERS,
+    GEOMETRIC,
     SHIPPED_SCORER,
     MethodContext,
     check_methods,
 )
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.setcover.settings import HullSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -512,7 +513,7 @@ def test_default_config_composes_to_the_documented_defaults():
     assert s.checkpoints["pcnbv_sph_vig"] == "outputs/train/pcnbv_sph_vig_fold0/best.pt"
     assert s.hull.network_views == 2
     assert s.check_start_views == (1, 10, 24)
-    assert s.hull == PlannerSettings() and s.hull.dilate is False
+    assert s.hull == HullSettings() and s.hull.dilate is False
     assert s.ig == VolumetricSettings() and s.workers == 0
     assert compose_with(["hull.dilate=true"]).hull.dilate is True
     with_meshes = compose_with(["mesh_dir=" + str(ROOT / "tests")])
@@ -638,8 +639,8 @@ def test_ig_learned_runs_the_given_scorer_and_its_bytes_decide_the_log(tiny, tmp
 def test_hull_policies_get_the_dilation_setting():
     networks = {"pcnbv_sph_vig": NetworkPolicy(model=object(), input="signature")}
     for dilate in (False, True):
-        ctx = MethodContext(networks, PlannerSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
-        for method in PLANNERS:
+        ctx = MethodContext(networks, HullSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
+        for method in GEOMETRIC:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
             hull = (
                 policy.hull if method in ("hull_ig", "vig_hull_sco", "vig_hull_sco_sph") else policy

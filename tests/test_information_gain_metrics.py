@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from nbv.planning.information_gain import (
+from nbv.infogain.gain import (
     AREA_OCCPLANE,
     AREA_OCCUPIED,
     OCCPLANE_RAY,
@@ -20,7 +20,7 @@ from nbv.planning.information_gain import (
     ray_gains,
     view_gains,
 )
-from nbv.planning.occupancy import OccupancyMap, OccupancySettings
+from nbv.infogain.occupancy import OccupancyMap, OccupancySettings
 
 OCCUPIED, FREE = 1.0, -1.0  # log-odds of a hit voxel and of a crossed one (NaN: unknown)
 

@@ -17,8 +17,8 @@ HEAVY = ("h5py", "torch", "open3d", "bpy")
     [
         "nbv.geometry.scores",
         "nbv.dataset.records",
-        "nbv.planning.planner",
-        "nbv.planning.view_sets",
+        "nbv.setcover.oneshot",
+        "nbv.setcover.view_sets",
         "nbv.geometry.raycast",
         "nbv.geometry.fusion",
         "nbv.geometry.reconstruction",

@@ -17,11 +17,11 @@ from shapes import INTO_POCKET, cup, pocket_scene
 import nbv.dataset
 from nbv.bench.volumetric import decision, numpy_ray_features, plain_decision
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
-from nbv.planning.gain_scorer import GainScorer, ScorerError, load_scorer, save_scorer
-from nbv.planning.information_gain import frontier, view_gains
-from nbv.planning.occupancy import OccupancyMap, OccupancySettings
-from nbv.planning.settings import VolumetricSettings
-from nbv.planning.view_features import FEATURES, RAY_FEATURES, ray_features, view_features
+from nbv.infogain.gain import frontier, view_gains
+from nbv.infogain.gain_scorer import GainScorer, ScorerError, load_scorer, save_scorer
+from nbv.infogain.occupancy import OccupancyMap, OccupancySettings
+from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.view_features import FEATURES, RAY_FEATURES, ray_features, view_features
 from nbv.policies.baselines import SpreadPolicy
 from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.learned_gain import LearnedGainPolicy

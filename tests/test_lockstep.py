@@ -20,13 +20,13 @@ from nbv.eval.disturb import disturbed
 from nbv.eval.evaluate import evaluate
 from nbv.eval.protocol import episode_rng
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.settings import PlannerSettings
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import run_episode
 from nbv.policies.lockstep import Batchable, EpisodeSpec, run_lockstep
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS, MethodContext
 from nbv.policies.two_stage import NetworkThenHullPolicy
+from nbv.setcover.settings import HullSettings
 
 STARTS = (0, 1, 3, 7, 10, 15, 24, 27, 30, 32)
 VIEWSPACES = ("original", "permuted")
@@ -55,7 +55,7 @@ def shipped_fp32() -> MethodContext:
             if kind.startswith("directions")
             else NetworkPolicy.from_checkpoint(path, n_views=33, precision="fp32")
         )
-    return MethodContext(networks, PlannerSettings(n_samp=2048), Intrinsics.centred(64, 48, 48.0),
+    return MethodContext(networks, HullSettings(n_samp=2048), Intrinsics.centred(64, 48, 48.0),
                          0.0070710678, 10)  # fmt: skip
 
 

@@ -11,13 +11,13 @@ from shapes import INTO_POCKET, cup, pocket_scene
 from nbv.bench.volumetric import decision, numpy_ray_gains, numpy_traverse, plain_decision
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.viewspace import spread_views
-from nbv.planning.information_gain import (
+from nbv.infogain.gain import (
     METRICS,
     frontier,
     ray_gains,
     view_gains,
 )
-from nbv.planning.occupancy import (
+from nbv.infogain.occupancy import (
     FREE,
     OCCUPIED,
     UNKNOWN,
@@ -27,8 +27,8 @@ from nbv.planning.occupancy import (
     background_directions,
     mask_directions,
 )
-from nbv.planning.raytrace import traverse
-from nbv.planning.settings import VolumetricSettings
+from nbv.infogain.raytrace import traverse
+from nbv.infogain.settings import VolumetricSettings
 from nbv.render.raycast import render_raycast
 
 

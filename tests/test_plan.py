@@ -250,15 +250,15 @@ def test_the_bench_decision_is_the_plan_from_the_same_capture_file(box, tmp_path
     from nbv.assets.meshes import load_mesh, normalise
     from nbv.bench.plan import decide
     from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
-    from nbv.planning.settings import PlannerSettings
     from nbv.render.raycast import render_raycast
+    from nbv.setcover.settings import HullSettings
 
     camera = Intrinsics.centred(160, 120, 119.0)
     mesh, _, _ = normalise(load_mesh(box))
     poses = viewspace_poses(original_viewspace())
     depth = render_raycast(mesh.vertices, mesh.faces, poses[[5]], camera)[0]
     points = backproject(depth, camera, poses[5])
-    bench = decide(method, 5, points, poses, camera, PlannerSettings())
+    bench = decide(method, 5, points, poses, camera, HullSettings())
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     (tmp_path / "caps").mkdir()
     assert o3d.io.write_point_cloud(str(tmp_path / "caps" / "v.ply"), cloud)

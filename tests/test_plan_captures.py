@@ -15,14 +15,15 @@ import pytest
 from capturegen import CAMERA, EPS, START, capture_model, episode_views, plan_captures, write_folder
 
 from nbv.geometry.camera import Intrinsics, opencv_to_blender
+from nbv.infogain.gain import view_gains
+from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.captures import CaptureError, check_rigid, read_captures, write_captures
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.method import policy_rng
 from nbv.plan.object_estimate import EstimateSettings, estimate_object
-from nbv.planning.information_gain import view_gains
-from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.registry import METHODS, MethodContext
+from nbv.setcover.settings import HullSettings
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,7 @@ def test_next_view_from_captures_is_the_episode_of_the_dataset(model, tmp_path, 
     assert result.visited == views[:captured]
     assert result.chosen == [views[captured]]
     # The planner's predicted gain is that of its decision: the best unvisited view's on its map.
-    ctx = MethodContext({}, PlannerSettings(), CAMERA, EPS, 10, VolumetricSettings())
+    ctx = MethodContext({}, HullSettings(), CAMERA, EPS, 10, VolumetricSettings())
     policy = METHODS["ig"].build(ctx, policy_rng(0, "ig"))
     state = EpisodeState(model, "original", np.isin(np.arange(33), views[:captured]),
                          list(views[:captured]))  # fmt: skip

@@ -13,14 +13,14 @@ from scipy.spatial import ConvexHull
 
 from nbv.assets.synthetic.catalogue import make_model
 from nbv.geometry.camera import Intrinsics, backproject
+from nbv.infogain.occupancy import FREE, OCCUPIED, UNKNOWN
+from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.candidates import REASONS, CandidateSettings, limit_candidates
 from nbv.plan.captures import read_captures, write_captures
 from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
 from nbv.plan.frame import ObjectFrame
 from nbv.plan.object_estimate import Plane
 from nbv.plan.placement import sensed_misses
-from nbv.planning.occupancy import FREE, OCCUPIED, UNKNOWN
-from nbv.planning.settings import VolumetricSettings
 from nbv.policies.episode import captured_state
 from nbv.policies.volumetric import InformationGainPolicy, SensedViews
 from nbv.render.scene import OBJECT, TABLE, WALL, SceneSettings, table_scene
@@ -170,7 +170,7 @@ def test_subsampled_points_make_no_misses_the_full_image_has_not(clean, tmp_path
     pose = frame.poses_to_normalised(captures[0].pose)
     points = frame.points_to_normalised(captures[0].points)
     (misses,) = sensed_misses(captures, frame)
-    from nbv.planning.occupancy import OccupancyMap
+    from nbv.infogain.occupancy import OccupancyMap
 
     grid = OccupancyMap(VolumetricSettings().occupancy())
     full = grid.sensed_voxels(points, pose, CAMERA, 16, misses)

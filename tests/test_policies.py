@@ -12,11 +12,7 @@ from datagen import SMALL_CAMERA, VOLUMETRIC, make_tiny_dataset
 from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
-from nbv.planning.gain_scorer import load_scorer
-from nbv.planning.hull_sampling import convex_hull
-from nbv.planning.planner import plan as sco_plan
-from nbv.planning.planner import sph_hull_points
-from nbv.planning.settings import PlannerSettings
+from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
@@ -27,6 +23,10 @@ from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS, SHIPPED_SCORER, MethodContext
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.setcover.hull_sampling import convex_hull
+from nbv.setcover.oneshot import plan as sco_plan
+from nbv.setcover.oneshot import sph_hull_points
+from nbv.setcover.settings import HullSettings
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +56,7 @@ def networks(tmp_path_factory):
 def all_policies(networks, seed: int = 0) -> dict:
     """One policy of every kind, seeded (the small camera of the dataset for the planners)."""
     rng = np.random.default_rng
-    hull = dict(intrinsics=SMALL_CAMERA, settings=PlannerSettings(n_samp=2048))
+    hull = dict(intrinsics=SMALL_CAMERA, settings=HullSettings(n_samp=2048))
     return {
         "random": RandomPolicy(rng(seed)),
         "spread": SpreadPolicy(rng(seed)),
@@ -75,7 +75,7 @@ def all_policies(networks, seed: int = 0) -> dict:
             rng(seed),
             sph=True,
             intrinsics=SMALL_CAMERA,
-            settings=PlannerSettings(n_samp=2048, lmax=2),
+            settings=HullSettings(n_samp=2048, lmax=2),
         ),
         "hull_sco_probes": HullSCOPolicy(rng(seed), probes=3, **hull),
         "hull_sco_replan": HullSCOReplanPolicy(rng(seed), **hull),
@@ -88,7 +88,7 @@ def all_policies(networks, seed: int = 0) -> dict:
                 rng(seed),
                 sph=True,
                 intrinsics=SMALL_CAMERA,
-                settings=PlannerSettings(n_samp=2048, lmax=2),
+                settings=HullSettings(n_samp=2048, lmax=2),
             ),
         ),
         "ig": InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA),
@@ -222,7 +222,7 @@ def test_one_shot_planner_is_the_plan_of_the_start_view(model):
     for dilate in (False, True):
         # eps about the small camera's pixel spacing: the dilation changes this plan.
         kw = dict(
-            settings=PlannerSettings(n_samp=4096, dilate=dilate), intrinsics=SMALL_CAMERA, eps=0.02
+            settings=HullSettings(n_samp=4096, dilate=dilate), intrinsics=SMALL_CAMERA, eps=0.02
         )
         episode = run_episode(model, "original", 10, HullSCOPolicy(np.random.default_rng(11), **kw))
         rng = np.random.default_rng(11)
@@ -236,7 +236,7 @@ def test_one_shot_planner_is_the_plan_of_the_start_view(model):
 
 def test_sph_planner_plans_on_the_signature(model):
     view = model.views["permuted"]
-    lmax2 = PlannerSettings(lmax=2)
+    lmax2 = HullSettings(lmax=2)
     policy = HullSCOPolicy(
         np.random.default_rng(2), sph=True, settings=lmax2, intrinsics=SMALL_CAMERA
     )
@@ -258,7 +258,7 @@ def test_probes_come_first_and_only_their_probe_points_are_used(model):
     policy = HullSCOPolicy(
         np.random.default_rng(3),
         probes=3,
-        settings=PlannerSettings(probe_points=20),
+        settings=HullSettings(probe_points=20),
         intrinsics=SMALL_CAMERA,
     )
     episode = run_episode(model, "original", 15, policy)
@@ -425,7 +425,7 @@ def test_information_gain_is_deterministic_and_maps_each_view_once(model):
 
 
 def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):
-    hull = dict(intrinsics=SMALL_CAMERA, settings=PlannerSettings(n_samp=2048))
+    hull = dict(intrinsics=SMALL_CAMERA, settings=HullSettings(n_samp=2048))
     one_shot = HullSCOPolicy(np.random.default_rng(7), **hull)
     plan = run_episode(model, "original", 10, one_shot).views[1:]
     covering = [v for v, g in zip(plan, one_shot.last_gains, strict=True) if g > 0]
@@ -443,7 +443,7 @@ def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):
 @pytest.mark.parametrize("sph", [False, True])
 def test_two_stage_takes_the_networks_picks_then_the_plan_of_the_whole_cloud(model, networks, sph):
     view = model.views["original"]
-    hull = dict(intrinsics=SMALL_CAMERA, settings=PlannerSettings(n_samp=2048, lmax=2), sph=sph)
+    hull = dict(intrinsics=SMALL_CAMERA, settings=HullSettings(n_samp=2048, lmax=2), sph=sph)
     k = 3
     policy = NetworkThenHullPolicy(
         networks["signature"].fresh(), HullSCOPolicy(np.random.default_rng(7), **hull), k
@@ -479,7 +479,7 @@ def test_oracle_vig_picks_the_view_of_the_largest_true_vig_gain(model):
 
     view = model.views["permuted"]
     hulls = view.view_hulls()
-    ctx = MethodContext({}, PlannerSettings(), SMALL_CAMERA, 0.02, 10)
+    ctx = MethodContext({}, HullSettings(), SMALL_CAMERA, 0.02, 10)
     oracle = METHODS["oracle_vig"].build(ctx, np.random.default_rng(0))
     episode = run_episode(model, "permuted", 3, oracle)
     for i in range(1, 10):

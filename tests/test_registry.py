@@ -7,9 +7,8 @@ import numpy as np
 import pytest
 from datagen import SMALL_CAMERA
 
-from nbv.planning.gain_scorer import GainScorer, load_scorer
-from nbv.planning.settings import PlannerSettings
-from nbv.planning.view_features import FEATURES
+from nbv.infogain.gain_scorer import GainScorer, load_scorer
+from nbv.infogain.view_features import FEATURES
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy
@@ -22,7 +21,7 @@ from nbv.policies.registry import (
     DEFAULT_METHODS,
     METHODS,
     NETWORK_INPUTS,
-    PLANNERS,
+    GEOMETRIC,
     SCORED,
     SHIPPED_SCORER,
     Method,
@@ -33,20 +32,21 @@ from nbv.policies.registry import (
 )
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.setcover.settings import HullSettings
 
 
-def _context(planner: PlannerSettings | None = None) -> MethodContext:
+def _context(hull: HullSettings | None = None) -> MethodContext:
     networks = {
         name: ConditionedPolicy(model=object())
         if kind == "directions"
         else NetworkPolicy(model=object(), input=kind)
         for name, kind in NETWORK_INPUTS.items()
     }
-    return MethodContext(networks, planner or PlannerSettings(), SMALL_CAMERA, 0.02, 7)
+    return MethodContext(networks, hull or HullSettings(), SMALL_CAMERA, 0.02, 7)
 
 
 def test_every_method_builds_a_fresh_policy_of_its_kind():
-    ctx = _context(PlannerSettings(n_samp=123, probes=2, lmax=1))
+    ctx = _context(HullSettings(n_samp=123, probes=2, lmax=1))
     kinds = {}
     for name, m in METHODS.items():
         assert m.name == name
@@ -74,9 +74,9 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
         assert kinds[name] is NetworkThenHullPolicy and policy.network_views == 2
         assert policy.network.model is ctx.networks["pcnbv_sph_vig"].model
         assert type(policy.hull) is HullSCOPolicy and policy.hull.sph is sph
-        assert policy.hull.settings is ctx.planner and policy.hull.probes == 0
+        assert policy.hull.settings is ctx.hull and policy.hull.probes == 0
         assert policy.hull.n_views == 7 and policy.hull.eps == 0.02
-    three = dataclasses.replace(ctx, planner=PlannerSettings(network_views=3))
+    three = dataclasses.replace(ctx, hull=HullSettings(network_views=3))
     assert METHODS["vig_hull_sco"].build(three, np.random.default_rng(0)).network_views == 3
     # Without its network loaded, a method that runs one says which.
     bare = dataclasses.replace(ctx, networks={})
@@ -110,7 +110,7 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
     spread = METHODS["spread"].build(ctx, np.random.default_rng(4))
     assert spread.rng.random() == np.random.default_rng(4).random()
     assert spread.counts == {"decisions": 0, "ties": 0}
-    for name in [p for p in PLANNERS if p.startswith("hull_sco")]:
+    for name in [p for p in GEOMETRIC if p.startswith("hull_sco")]:
         policy = METHODS[name].build(ctx, np.random.default_rng(0))
         assert policy.settings.n_samp == 123 and policy.n_views == 7 and policy.eps == 0.02
         assert policy.intrinsics == SMALL_CAMERA
@@ -128,7 +128,7 @@ def test_derived_lists_follow_the_entries():
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "pcnbv_vig": "points",
                               "pcnbv_sph_vig": "signature", "vcnbv": "directions",
                               "vcnbv_map": "directions"}  # fmt: skip
-    assert PLANNERS == (
+    assert GEOMETRIC == (
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco",
         "vig_hull_sco_sph", "ig", "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
     )  # fmt: skip

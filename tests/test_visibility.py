@@ -8,9 +8,9 @@ from shapes import cube_corners, fibonacci_sphere
 
 from nbv.geometry.camera import Intrinsics, project, viewspace_poses
 from nbv.geometry.viewspace import original_viewspace
-from nbv.planning.hull_sampling import convex_hull, sample_on_hull
-from nbv.planning.view_sets import view_sets
-from nbv.planning.visibility import analytic_visibility, analytic_visibility_faces
+from nbv.setcover.hull_sampling import convex_hull, sample_on_hull
+from nbv.setcover.view_sets import view_sets
+from nbv.setcover.visibility import analytic_visibility, analytic_visibility_faces
 
 K = Intrinsics()
 

@@ -20,11 +20,11 @@ def save_tiny_checkpoint(
     one that reads map features)."""
     import torch
 
+    from nbv.infogain.view_features import FEATURES
     from nbv.models.checkpoints import save_checkpoint
     from nbv.models.config import PCNBVConfig
     from nbv.models.pcnbv import PCNBV
     from nbv.models.view_conditioned import ConditionedConfig, ViewConditionedNet, save_conditioned
-    from nbv.planning.view_features import FEATURES
 
     torch.manual_seed(seed)
     if input.startswith("directions"):

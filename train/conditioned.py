@@ -16,7 +16,7 @@ viewspaces (66 directions with their true coverage bits) are the pool:
    the directions, the view state and the true gains of the candidates).
 
 With ``map_features=true`` (the ``vcnbv_map`` variant) a sample also holds each unvisited
-candidate's map features (:func:`nbv.planning.view_features.view_features`) on the occupancy map
+candidate's map features (:func:`nbv.infogain.view_features.view_features`) on the occupancy map
 of ``ig`` (its default settings) of the visited views, built in the model's own frame: the
 features are counts along rays and angles, which the turn of step 2 leaves unchanged.
 
@@ -51,16 +51,16 @@ from nbv.config.settings import Entry, check_ranges, setting
 from nbv.dataset.records import ModelData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import coverage_gains
+from nbv.infogain.gain import candidate_voxels
+from nbv.infogain.occupancy import OccupancyMap, OccupancySettings
+from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.view_features import FEATURES, unvisited_features
 from nbv.models.view_conditioned import (
     ConditionedConfig,
     ViewConditionedNet,
     load_conditioned,
     save_conditioned,
 )
-from nbv.planning.information_gain import candidate_voxels
-from nbv.planning.occupancy import OccupancyMap, OccupancySettings
-from nbv.planning.settings import VolumetricSettings
-from nbv.planning.view_features import FEATURES, unvisited_features
 from nbv.policies.conditioned_network import ConditionedPolicy, unit_directions
 from nbv.policies.episode import DEFAULT_START_VIEWS, auc, run_episode
 from nbv.policies.volumetric import InformationGainPolicy

@@ -12,9 +12,9 @@ from __future__ import annotations
 import numpy as np
 from tqdm import tqdm
 
-from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import EPISODE_VIEWS, run_episode
 from nbv.policies.registry import BASELINES, METHODS, MethodContext
+from nbv.setcover.settings import HullSettings
 from nbv.utils.seeding import named_rng
 
 #: The file in the run folder.
@@ -53,7 +53,7 @@ def score_heldout(
         out["coverage"][method].append(np.mean([e.coverage for e in episodes], axis=0).tolist())
 
     # The baselines read none of the context but the camera: no network, no planner.
-    context = MethodContext({}, PlannerSettings(), dataset.intrinsics,
+    context = MethodContext({}, HullSettings(), dataset.intrinsics,
                             float(dataset.attrs["eps"]), EPISODE_VIEWS)  # fmt: skip
     bar = tqdm(total=len(keys) * len(start_views), desc="held-out episodes", disable=not progress)
     for key in keys:

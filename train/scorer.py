@@ -1,4 +1,4 @@
-"""Training of ``ig_learned``'s score (:mod:`nbv.planning.gain_scorer`).
+"""Training of ``ig_learned``'s score (:mod:`nbv.infogain.gain_scorer`).
 
 ``python -m train.scorer [key=value ...]`` (``conf/train_scorer.yaml``).
 
@@ -7,7 +7,7 @@
    same elevation band, in a random order), ``starts`` episodes from seeded random start views
    run to ``n_views`` views on the occupancy map of ``ig`` (its default settings). Before each
    pick the decision's candidates are stored: their features
-   (:func:`nbv.planning.view_features.view_features`) and their true coverage gains. The
+   (:func:`nbv.infogain.view_features.view_features`) and their true coverage gains. The
    next view is ``ig``'s pick with probability ``ig_step_prob``, the oracle's with
    ``oracle_step_prob``, a random unvisited view otherwise: the decisions then cover the states
    the planner meets and better ones. The models of the *valid* split give the validation
@@ -46,9 +46,9 @@ from nbv.config.cli import command
 from nbv.config.schema import ConfigError, PathsConfig
 from nbv.config.settings import Entry, check_ranges, setting
 from nbv.dataset.records import ViewData, offsets_of, score_functions
-from nbv.planning.gain_scorer import GainScorer, save_scorer
-from nbv.planning.settings import VolumetricSettings
-from nbv.planning.view_features import FEATURES, view_features
+from nbv.infogain.gain_scorer import GainScorer, save_scorer
+from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.view_features import FEATURES, view_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.utils.fields import at_least, between, positive

@@ -16,9 +16,10 @@ import numpy as np
 from nbv.bench.timing import best_time
 from nbv.bench.volumetric import plain_decision
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.planning.settings import PlannerSettings, VolumetricSettings
+from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.episode import EPISODE_VIEWS, captured_state
 from nbv.policies.registry import HULL_SCO, IG, METHODS, MethodContext
+from nbv.setcover.settings import HullSettings
 from nbv.utils.seeding import named_rng
 
 #: Points of the benchmark's capture.
@@ -37,7 +38,7 @@ def capture(views: list[np.ndarray]) -> tuple[int, np.ndarray]:
 
 
 def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrinsics,
-           hull: PlannerSettings) -> int | list[int]:  # fmt: skip
+           hull: HullSettings) -> int | list[int]:  # fmt: skip
     """One decision of ``method`` after the capture ``(view, points)``, as nbv.plan makes it
     (the chair is normalised already: its frame is the planners'), on the state nbv.plan
     builds (:func:`nbv.policies.episode.captured_state`)."""
@@ -53,7 +54,7 @@ def capture_rows(views: list[np.ndarray], poses: np.ndarray, intrinsics) -> list
     view, points = capture(views)
     # float32, as the plan's record holds them: the plain reference reads what the policy reads.
     points = points.astype(np.float32)
-    analytic, raycast = PlannerSettings(), PlannerSettings(simulation="raycast")
+    analytic, raycast = HullSettings(), HullSettings(simulation="raycast")
     rows = []
 
     def hull_ours():

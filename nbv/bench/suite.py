@@ -40,15 +40,15 @@ from nbv.geometry.scores import (
 from nbv.geometry.sph import equiangular_directions, signature, unit_vectors
 from nbv.geometry.union import UnionHulls
 from nbv.geometry.viewspace import original_viewspace
-from nbv.planning.gain_scorer import load_scorer
-from nbv.planning.hull_sampling import DEFAULT_N_SAMP, convex_hull, sample_hull
-from nbv.planning.planner import Plan
-from nbv.planning.planner import plan as sco_plan
-from nbv.planning.set_cover import greedy_max_coverage
-from nbv.planning.settings import PlannerSettings
-from nbv.planning.view_sets import view_sets
+from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.registry import PCNBV, PCNBV_SPH
 from nbv.render.raycast import render_raycast
+from nbv.setcover.greedy import greedy_max_coverage
+from nbv.setcover.hull_sampling import DEFAULT_N_SAMP, convex_hull, sample_hull
+from nbv.setcover.oneshot import Plan
+from nbv.setcover.oneshot import plan as sco_plan
+from nbv.setcover.settings import HullSettings
+from nbv.setcover.view_sets import view_sets
 
 #: Points of the small ground truth whose hull :func:`small_gt_hull_error` checks.
 SMALL_GT = 512
@@ -193,7 +193,7 @@ def _set_cover_rows(scene: dict, start_cloud: np.ndarray, seed: int) -> list[dic
 
     def plan(**kw) -> Plan:
         return sco_plan(start_cloud, original_viewspace(), exclude=(1,),
-                        settings=PlannerSettings(**kw), poses=poses)  # fmt: skip
+                        settings=HullSettings(**kw), poses=poses)  # fmt: skip
 
     rows = [
         _timed("view simulation, 33 views on a hull",

@@ -5,8 +5,8 @@
 :func:`numpy_ray_features` ``ig_learned``'s per-ray features on whole ``(R, S)`` arrays, and
 :func:`plain_decision` one information-gain decision built from them (``scorer``: an
 ``ig_learned`` decision), timed against the policies themselves (:func:`decision`): the fair
-references of :mod:`nbv.planning.raytrace`,
-:func:`nbv.planning.information_gain.ray_gains`, :func:`nbv.planning.view_features.ray_features`,
+references of :mod:`nbv.infogain.raytrace`,
+:func:`nbv.infogain.gain.ray_gains`, :func:`nbv.infogain.view_features.ray_features`,
 :class:`nbv.policies.volumetric.InformationGainPolicy` and
 :class:`nbv.policies.learned_gain.LearnedGainPolicy`.
 """
@@ -19,11 +19,11 @@ import numpy as np
 
 from nbv.bench.timing import best_time
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.gain_scorer import GainScorer
-from nbv.planning.information_gain import candidate_segments, frontier
-from nbv.planning.occupancy import OccupancyMap, background_directions, log_odds_of
-from nbv.planning.raytrace import clip_to_box, drop_end_voxels, flat_index
-from nbv.planning.settings import VolumetricSettings
+from nbv.infogain.gain import candidate_segments, frontier
+from nbv.infogain.gain_scorer import GainScorer
+from nbv.infogain.occupancy import OccupancyMap, background_directions, log_odds_of
+from nbv.infogain.raytrace import clip_to_box, drop_end_voxels, flat_index
+from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.episode import captured_state
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.volumetric import InformationGainPolicy
@@ -32,7 +32,7 @@ from nbv.policies.volumetric import InformationGainPolicy
 def numpy_traverse(
     origins: np.ndarray, ends: np.ndarray, n: int, bound: float, include_end: bool = True
 ) -> np.ndarray:
-    """:func:`nbv.planning.raytrace.traverse` in numpy: the same (R, S) voxels, -1 padded."""
+    """:func:`nbv.infogain.raytrace.traverse` in numpy: the same (R, S) voxels, -1 padded."""
     origins, ends = np.asarray(origins, float), np.asarray(ends, float)
     scale = n / (2.0 * bound)
     start, delta = (origins + bound) * scale, (ends - origins) * scale
@@ -99,7 +99,7 @@ def numpy_ray_gains(
     frontier_mask: np.ndarray | None = None,
     depth: int = 0,
 ) -> np.ndarray:
-    """:func:`nbv.planning.information_gain.ray_gains` on whole arrays: (R,) gains
+    """:func:`nbv.infogain.gain.ray_gains` on whole arrays: (R,) gains
     (``frontier_mask``: the (n^3,) bool frontier the ``frontier`` metric counts; ``depth``: the
     cap of a ray's count, 0 for none).
 
@@ -132,7 +132,7 @@ def numpy_ray_gains(
 def numpy_ray_features(
     log_odds: np.ndarray, voxels: np.ndarray, frontier_mask: np.ndarray, n: int
 ) -> np.ndarray:
-    """:func:`nbv.planning.view_features.ray_features` on whole arrays: (R, 8)."""
+    """:func:`nbv.infogain.view_features.ray_features` on whole arrays: (R, 8)."""
     rays = _read_rays(log_odds, voxels)
     valid, index, _, unknown, occupied, before = rays
     rear = rays.rear()

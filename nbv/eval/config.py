@@ -4,8 +4,8 @@
 
 The method names, the network methods' checkpoint inputs and the disturbance checks come from the
 registry (:mod:`nbv.policies.registry`); the ``hull:`` and ``ig:`` groups are the planners' own
-settings (:class:`~nbv.planning.settings.PlannerSettings`,
-:class:`~nbv.planning.settings.VolumetricSettings`). :class:`EvalSettings` keeps the checks of
+settings (:class:`~nbv.setcover.settings.HullSettings`,
+:class:`~nbv.infogain.settings.VolumetricSettings`). :class:`EvalSettings` keeps the checks of
 names and of fields that go together, among them that every start view lies in every selected
 viewspace. :meth:`EvalSettings.stored` is the flat layout ``results.json`` and the episode log
 store the settings in.
@@ -31,9 +31,10 @@ from nbv.config.settings import Entry, check_ranges, setting
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.geometry.viewspace import ViewspaceError, get_viewspace, is_named
-from nbv.planning.settings import PlannerSettings, VolumetricSettings
+from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
 from nbv.policies.registry import CHECKS, DEFAULT_METHODS, METHODS, NETWORK_INPUTS, networks_of
+from nbv.setcover.settings import HullSettings
 from nbv.utils.fields import at_least, or_null, positive
 
 #: The datasets prepared from meshes (rendered, scored and cached by :mod:`nbv.eval.prepare`):
@@ -235,9 +236,9 @@ class EvalSettings:
             ``python -m train``, or of ``python -m train.conditioned`` for the
             viewspace-conditioned ones); every selected network method needs one, and so does
             the network a selected method is led by (``vig_hull_sco``: ``pcnbv_sph_vig``'s).
-        hull: the convex-hull set cover (:class:`~nbv.planning.settings.PlannerSettings`).
+        hull: the convex-hull set cover (:class:`~nbv.setcover.settings.HullSettings`).
         ig: the volumetric information gain's occupancy map and scores
-            (:class:`~nbv.planning.settings.VolumetricSettings`).
+            (:class:`~nbv.infogain.settings.VolumetricSettings`).
         ig_scorer: the learned score of ig_learned, a ``scorer.json`` of
             ``python -m train.scorer``; null = the one the package ships
             (nbv/assets/weights/ig_learned.json). It uses the ``ig:`` settings for its map.
@@ -280,7 +281,7 @@ class EvalSettings:
     )
     n_views: int = setting(EPISODE_VIEWS, allows=at_least(2))
     checkpoints: dict[str, str] = setting(factory=dict)
-    hull: PlannerSettings = setting(factory=PlannerSettings)
+    hull: HullSettings = setting(factory=HullSettings)
     ig: VolumetricSettings = setting(factory=VolumetricSettings)
     ig_scorer: Path | None = setting(None, convert=_optional_path)
     disturb: DisturbSettings = setting(factory=DisturbSettings)

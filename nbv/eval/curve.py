@@ -35,9 +35,9 @@ from nbv.config.schema import PathsConfig
 from nbv.config.settings import Entry, setting
 from nbv.eval.config import VIEWSPACES, DisturbSettings, EvalSettings
 from nbv.eval.evaluate import run as run_eval
+from nbv.infogain.gain_scorer import load_scorer
 from nbv.models.checkpoints import CHECKPOINT_FORMAT, load_checkpoint
 from nbv.models.view_conditioned import load_conditioned
-from nbv.planning.gain_scorer import load_scorer
 from nbv.policies.registry import BASELINES, METHODS, NETWORK_INPUTS, SCORED, SPREAD
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean

@@ -32,7 +32,7 @@ from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.metrics import ModelMetrics, fill_metrics
 from nbv.eval.prepare import prepare_meshes, read_model, rendered_viewspaces, stored_name
 from nbv.eval.protocol import EpisodeRecord, episode_record, episode_rng
-from nbv.planning.gain_scorer import load_scorer
+from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.episode import Episode, run_episode
 from nbv.policies.lockstep import EpisodeSpec, run_lockstep
 from nbv.policies.network import NetworkPolicy

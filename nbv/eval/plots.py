@@ -24,7 +24,7 @@ import numpy as np  # noqa: E402
 from nbv.eval.disturb import auc_changes  # noqa: E402
 from nbv.eval.metric_tables import episode_values, summaries  # noqa: E402
 from nbv.eval.tables import groups, method_rank, order_methods  # noqa: E402
-from nbv.policies.registry import METHODS, ORACLE, PLANNERS  # noqa: E402
+from nbv.policies.registry import METHODS, ORACLE, GEOMETRIC  # noqa: E402
 
 CHECK_LABELS = {
     "random_cloud": "random cloud",
@@ -183,7 +183,7 @@ def metrics_figure(evaluation, path: Path) -> bool:
 
 def _example(evaluation):
     """The episode drawn in reconstruction.png: the first convex-hull (else any) episode."""
-    for method in (*PLANNERS, ORACLE.name):
+    for method in (*GEOMETRIC, ORACLE.name):
         for r in evaluation.records:
             if r.method == method and r.check is None:
                 return r

@@ -51,11 +51,11 @@ from nbv.eval.evaluate import (
 from nbv.eval.prepare import read_model
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.planning.gain_scorer import load_scorer
-from nbv.planning.settings import PlannerSettings
+from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD, MethodContext
+from nbv.setcover.settings import HullSettings
 from nbv.utils.fields import at_least, or_null
 from nbv.utils.markdown import md_table
 from nbv.utils.ranking import best_view_hit, spearman_per_sample, split_half_reliability
@@ -72,7 +72,7 @@ def _ranked() -> tuple[str, ...]:
     method led by another's network (a two-stage planner) has none; any other method's policy
     is built once, with default settings, to see.
     """
-    ctx = MethodContext({}, PlannerSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS)
+    ctx = MethodContext({}, HullSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS)
     return tuple(
         m.name
         for m in METHODS.values()

@@ -113,7 +113,7 @@ def write_csv(evaluation, path: Path) -> None:
         row = [dataset, vs, method, check or "", s["n"], s["repeats"], f"{s['auc']:.6f}"]
         row += ["" if not np.isfinite(x) else f"{x:.6f}"
                 for x in (s["auc_se"], s["auc_ci"].low, s["auc_ci"].high)]  # fmt: skip
-        planner = METHODS[method].planner if method in METHODS else False
+        planner = METHODS[method].geometric if method in METHODS else False
         row += [f"{s['zero_gain']:.4f}", f"{s['planned']:.4f}"] if planner else ["", ""]
         row += [f"{c:.6f}" for c in s["coverage"]]
         row += ["" if not np.isfinite(v) else f"{v:.6f}" for v in s["vig"]]
@@ -204,7 +204,7 @@ def vig_table(records, methods, datasets, viewspaces, seed: int) -> list[str]:
 
 def filler_table(g: dict, methods, datasets, viewspaces) -> list[str]:
     """Mean zero-gain picks per planner episode: picks the fill rule made, not the score."""
-    planners = [m for m in methods if m in METHODS and METHODS[m].planner]
+    planners = [m for m in methods if m in METHODS and METHODS[m].geometric]
     if not planners:
         return []
 

@@ -2,7 +2,7 @@
 
 The pure ray casting, with no render job or renderer process around it: the dataset's ``raycast``
 backend (:mod:`nbv.render.raycast`) and the planner's ray-cast view simulation
-(:func:`nbv.planning.view_sets.raycast_view_sets`) both call :func:`raycast_depth`, so that they
+(:func:`nbv.setcover.view_sets.raycast_view_sets`) both call :func:`raycast_depth`, so that they
 see the same pixels. Open3D is imported on the first call only (it is heavy).
 """
 

@@ -12,7 +12,7 @@ other directions means nothing to it. This network scores each candidate *from i
   mean of a small MLP of them;
 * with ``map_features > 0`` (the ``vcnbv_map`` variant), each candidate's numbers of what its
   rays would see on an occupancy map of the captured views
-  (:func:`nbv.planning.view_features.view_features`) join its features;
+  (:func:`nbv.infogain.view_features.view_features`) join its features;
 * a head maps the joined features of each candidate to its score.
 
 Any number of candidates in any order: inputs ``(B, N, 3)`` points, ``(B, V, 3)`` unit

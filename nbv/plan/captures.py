@@ -60,7 +60,7 @@ from nbv.geometry.camera import (
     project,
     valid_depth,
 )
-from nbv.planning.occupancy import Misses
+from nbv.infogain.occupancy import Misses
 
 #: The index file of a capture folder.
 INDEX = "views.json"

@@ -21,11 +21,12 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.fusion import FusionSettings
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.geometry.viewspace_generators import ViewspaceSpec
+from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.candidates import CandidateSettings
 from nbv.plan.object_estimate import EstimateSettings
-from nbv.planning.settings import PlannerSettings, VolumetricSettings
 from nbv.policies.episode import EPISODE_VIEWS
 from nbv.policies.registry import IG, METHODS, networks_of
+from nbv.setcover.settings import HullSettings
 from nbv.utils.fields import at_least, positive
 
 #: The methods a user may plan with: those that do not read the ground truth.
@@ -161,7 +162,7 @@ class PlanSettings:
         save_captures: mesh input: write the episode's first this many views as a capture
             folder (depth NPY and ``views.json``); 0 writes none.
         captures_out: where; null = ``<out_dir>/captures``. It must be new or empty.
-        hull: the convex-hull planners' settings (:class:`PlannerSettings`).
+        hull: the convex-hull planners' settings (:class:`HullSettings`).
         ig: the information-gain planners' settings (:class:`VolumetricSettings`).
         reconstruction: the depth views fused into ``reconstruction.ply``
             (:class:`~nbv.geometry.fusion.FusionSettings`).
@@ -196,7 +197,7 @@ class PlanSettings:
     n_gt: int = setting(DEFAULT_N_GT, allows=at_least(1))
     save_captures: int = setting(0, allows=at_least(0))
     captures_out: Path | None = None
-    hull: PlannerSettings = setting(factory=PlannerSettings)
+    hull: HullSettings = setting(factory=HullSettings)
     ig: VolumetricSettings = setting(factory=VolumetricSettings)
     reconstruction: FusionSettings = setting(factory=FusionSettings)
     seed: int = 0

@@ -22,6 +22,7 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.clouds import random_subset
+from nbv.infogain.occupancy import Misses
 from nbv.plan.captures import Capture, CaptureError, check_views_see
 from nbv.plan.config import PlanSettings
 from nbv.plan.frame import ObjectFrame
@@ -36,7 +37,6 @@ from nbv.plan.placement import (
     support_of,
 )
 from nbv.plan.result import VIEWSPACE, PlanResult
-from nbv.planning.occupancy import Misses
 from nbv.policies.episode import captured_state, stage_seconds
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.policies.volumetric import InformationGainPolicy, SensedViews

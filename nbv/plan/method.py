@@ -44,7 +44,7 @@ def method_context(settings: PlanSettings, camera: Intrinsics, n_views: int) -> 
     }
     return MethodContext(
         networks=networks,
-        planner=settings.hull,
+        hull=settings.hull,
         intrinsics=camera,
         eps=settings.eps,
         n_views=settings.n_views,

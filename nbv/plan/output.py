@@ -173,7 +173,7 @@ def write_mesh(path: Path, vertices: np.ndarray, triangles: np.ndarray) -> None:
 def hull_mesh(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(K, 3) vertices and (F, 3) triangles of the cloud's convex hull (empty for a flat or
     tiny cloud, which has none)."""
-    from nbv.planning.hull_sampling import convex_hull
+    from nbv.setcover.hull_sampling import convex_hull
 
     try:
         hull = convex_hull(np.asarray(points, dtype=np.float64))

@@ -18,6 +18,7 @@ import numpy as np
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.geometry.viewspace_generators import up_rotation
+from nbv.infogain.occupancy import Misses
 from nbv.plan.candidates import declared_plane, limit_candidates
 from nbv.plan.captures import Capture, CaptureError, check_views_see
 from nbv.plan.config import PlanSettings
@@ -29,7 +30,6 @@ from nbv.plan.object_estimate import (
     find_planes,
     thinned,
 )
-from nbv.planning.occupancy import Misses
 
 log = logging.getLogger(__name__)
 

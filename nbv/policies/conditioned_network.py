@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from nbv.geometry.clouds import farthest_points
-from nbv.planning.view_features import unvisited_features
+from nbv.infogain.view_features import unvisited_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import cloud_or_origin, record_time
 from nbv.policies.lockstep import StateRequest
@@ -79,7 +79,7 @@ class ConditionedPolicy:
 
     def map_features(self, state: EpisodeState) -> np.ndarray:
         """(V, F) float32 map features of the episode's views on the mapper's map
-        (:func:`~nbv.planning.view_features.unvisited_features`: zeros for the visited ones)."""
+        (:func:`~nbv.infogain.view_features.unvisited_features`: zeros for the visited ones)."""
         if self.mapper is None:
             raise ValueError(
                 "this network reads map features: build its policy with fresh(mapper=...), an "

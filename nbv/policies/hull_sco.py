@@ -9,11 +9,11 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.planning.hull_sampling import cameras_inside, convex_hull
-from nbv.planning.planner import Plan, plan, sph_hull_points
-from nbv.planning.settings import PlannerSettings
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
 from nbv.policies.inputs import NO_SPREAD, cloud_or_origin, has_spread, record_time
+from nbv.setcover.hull_sampling import cameras_inside, convex_hull
+from nbv.setcover.oneshot import Plan, plan, sph_hull_points
+from nbv.setcover.settings import HullSettings
 
 #: Relative thickness given to a cloud whose hull has no volume (see :func:`thicken`).
 THICKEN_RTOL = 1e-3
@@ -45,8 +45,8 @@ class HullSCOPolicy:
     """Convex-hull set cover, one-shot (the paper's Algorithms 2 and 3).
 
     On the first call, with ``probes == 0``: plan every remaining view from the start view's
-    cloud (:func:`nbv.planning.planner.plan`; with ``sph``, on the hull of
-    :func:`nbv.planning.planner.sph_hull_points`), excluding the visited views, and return the
+    cloud (:func:`nbv.setcover.oneshot.plan`; with ``sph``, on the hull of
+    :func:`nbv.setcover.oneshot.sph_hull_points`), excluding the visited views, and return the
     plan; the episode takes it in order. With ``probes = k``: first return ``k`` seeded random
     unvisited views (they count in the episode); on the next call plan from the start view's
     cloud plus ``probe_points`` random points of each probe view (``settings.probe_points``;
@@ -57,9 +57,9 @@ class HullSCOPolicy:
 
     Attributes:
         rng: generator of the probe views, probe points and the hull samples; each plan's
-            zero-gain fill breaks its ties with a child of it (:func:`nbv.planning.planner.plan`:
+            zero-gain fill breaks its ties with a child of it (:func:`nbv.setcover.oneshot.plan`:
             spawned, so the draws above are those of a plan with a lowest-index fill).
-        settings: the planner's settings (:class:`nbv.planning.settings.PlannerSettings`):
+        settings: the planner's settings (:class:`nbv.setcover.settings.HullSettings`):
             hull samples, view simulation, dilation, the signature's degree ``lmax`` and the
             ``probe_points`` of each probe view.
         sph: plan on the hull of the cloud's spherical signature of degree ``settings.lmax``.
@@ -72,7 +72,7 @@ class HullSCOPolicy:
     """
 
     rng: np.random.Generator
-    settings: PlannerSettings = field(default_factory=PlannerSettings)
+    settings: HullSettings = field(default_factory=HullSettings)
     sph: bool = False
     probes: int = 0
     n_views: int = EPISODE_VIEWS

@@ -1,10 +1,10 @@
 """``ig_learned``: the occupancy map of ``ig``, with candidates ranked by a learned score.
 
 ``ig`` ranks candidates by one count (the unknown voxels their rays would cross). Here each
-candidate's rays give several (:mod:`nbv.planning.view_features`: the unknown volume and area it
+candidate's rays give several (:mod:`nbv.infogain.view_features`: the unknown volume and area it
 faces, the rear sides and frontier voxels it would see, how far the unknown region lies, its
 angle to the captured views), and a small perceptron trained on the training categories' true
-coverage gains (:mod:`nbv.planning.gain_scorer`, ``python -m train.scorer``) weighs them. The policy
+coverage gains (:mod:`nbv.infogain.gain_scorer`, ``python -m train.scorer``) weighs them. The policy
 reads what ``ig`` reads: the captured views' points and poses and the candidates' poses.
 """
 
@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.gain_scorer import GainScorer, load_scorer
-from nbv.planning.information_gain import view_gains
-from nbv.planning.settings import VolumetricSettings
-from nbv.planning.view_features import unvisited_features
+from nbv.infogain.gain import view_gains
+from nbv.infogain.gain_scorer import GainScorer, load_scorer
+from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.view_features import unvisited_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.policies.volumetric import InformationGainPolicy
@@ -39,7 +39,7 @@ class LearnedGainPolicy(InformationGainPolicy):
     def from_checkpoint(
         cls, path: str | Path, intrinsics: Intrinsics, settings: VolumetricSettings | None = None
     ) -> LearnedGainPolicy:
-        """The policy of the scorer file ``path`` (:func:`nbv.planning.gain_scorer.load_scorer`;
+        """The policy of the scorer file ``path`` (:func:`nbv.infogain.gain_scorer.load_scorer`;
         ``ScorerError`` names a bad file) on the map of ``settings`` (default: ``ig``'s
         defaults, on which the shipped scorer was trained)."""
         return cls(settings or VolumetricSettings(), intrinsics, scorer=load_scorer(path))
@@ -48,7 +48,7 @@ class LearnedGainPolicy(InformationGainPolicy):
         """(V,) the learned scores this policy picks by in ``state`` (-inf for visited views)."""
         if self.scorer is None:
             raise ValueError(
-                "LearnedGainPolicy needs a scorer (nbv.planning.gain_scorer.load_scorer)"
+                "LearnedGainPolicy needs a scorer (nbv.infogain.gain_scorer.load_scorer)"
             )
         t0 = time.perf_counter()
         self.update(state)

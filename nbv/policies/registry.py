@@ -19,8 +19,8 @@ import numpy as np
 
 from nbv.assets.weights import SHIPPED_SCORER, shipped_weights
 from nbv.geometry.camera import Intrinsics
-from nbv.planning.gain_scorer import GainScorer, load_scorer
-from nbv.planning.settings import PlannerSettings, VolumetricSettings
+from nbv.infogain.gain_scorer import GainScorer, load_scorer
+from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import Policy
@@ -30,6 +30,7 @@ from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.setcover.settings import HullSettings
 
 log = logging.getLogger(__name__)
 
@@ -47,7 +48,7 @@ class MethodContext:
     Attributes:
         networks: network method name -> a loaded :class:`NetworkPolicy` (every network the
             built methods run: :attr:`Method.networks`).
-        planner: the convex-hull planner's settings.
+        hull: the convex-hull set cover's settings.
         intrinsics: the dataset's camera.
         eps: the dataset's coverage distance (the planner's capture distance: of the raycast
             simulation, and of the analytic one's dilation).
@@ -60,7 +61,7 @@ class MethodContext:
     """
 
     networks: Mapping[str, NetworkPolicy]
-    planner: PlannerSettings
+    hull: HullSettings
     intrinsics: Intrinsics
     eps: float
     n_views: int
@@ -87,7 +88,7 @@ class Method:
         ground_truth: the method reads the ground truth (an upper reference, not a method a
             robot could run).
         checks: the disturbance checks that apply to it.
-        planner: a geometric planner (its plans' zero-gain picks are fill, not its score).
+        geometric: a geometric planner (its plans' zero-gain picks are fill, not its score).
         stochastic: its picks are random by design; the evaluation averages several seeds
             per episode (``random_repeats``).
         style: matplotlib colour and line style of its curves.
@@ -109,7 +110,7 @@ class Method:
     network_input: str | None = None
     ground_truth: bool = False
     checks: tuple[str, ...] = ()
-    planner: bool = False
+    geometric: bool = False
     stochastic: bool = False
     style: tuple[str, str] = ("#8c564b", "-")
     learned_score: bool = False
@@ -203,9 +204,9 @@ def _hull_policy(
     kind = HullSCOReplanPolicy if replan else HullSCOPolicy
     return kind(
         rng=rng,
-        settings=ctx.planner,
+        settings=ctx.hull,
         sph=sph,
-        probes=ctx.planner.probes if probes else 0,
+        probes=ctx.hull.probes if probes else 0,
         n_views=ctx.n_views,
         intrinsics=ctx.intrinsics,
         eps=ctx.eps,
@@ -316,7 +317,7 @@ HULL_SCO = Method(
     "convex-hull set cover, one-shot from the start view's cloud",
     lambda ctx, rng: _hull_policy(ctx, rng),
     checks=("random_hull", "position_noise"),
-    planner=True,
+    geometric=True,
     style=("#d62728", "-"),
     # Its convex-hull row simulates views in Blender; its total (3.32 s) is as published.
     paper_times={"simulation": 3.32, "set_cover": 0.12, "total": 3.32, "online": 0.12},
@@ -326,14 +327,14 @@ HULL_SCO_SPH = Method(
     "convex-hull set cover on the hull of the cloud's spherical signature",
     lambda ctx, rng: _hull_policy(ctx, rng, sph=True),
     checks=("position_noise",),
-    planner=True,
+    geometric=True,
     style=("#ff7f0e", "-"),
 )
 HULL_SCO_PROBES = Method(
     "hull_sco_probes",
     "hull_sco after `hull.probes` random probe views",
     lambda ctx, rng: _hull_policy(ctx, rng, probes=True),
-    planner=True,
+    geometric=True,
     style=("#9467bd", "-."),
 )
 
@@ -344,7 +345,7 @@ def _two_stage(sph: bool) -> Callable[[MethodContext, np.random.Generator], Poli
     return lambda ctx, rng: NetworkThenHullPolicy(
         _loaded(ctx, PCNBV_SPH_VIG.name),
         _hull_policy(ctx, rng, sph=sph),
-        ctx.planner.network_views,
+        ctx.hull.network_views,
     )
 
 
@@ -354,7 +355,7 @@ VIG_HULL_SCO = Method(
     "hull_sco plans the rest on the hull of the whole cloud",
     _two_stage(sph=False),
     network=PCNBV_SPH_VIG.name,
-    planner=True,
+    geometric=True,
     score="vig",
     style=("#ff9896", "--"),
 )
@@ -363,7 +364,7 @@ VIG_HULL_SCO_SPH = Method(
     "vig_hull_sco planning on the hull of the whole cloud's spherical signature",
     _two_stage(sph=True),
     network=PCNBV_SPH_VIG.name,
-    planner=True,
+    geometric=True,
     score="vig",
     style=("#ffbb78", "--"),
 )
@@ -371,7 +372,7 @@ HULL_SCO_REPLAN = Method(
     "hull_sco_replan",
     "convex-hull set cover replanned on the whole cloud after every view",
     lambda ctx, rng: _hull_policy(ctx, rng, replan=True),
-    planner=True,
+    geometric=True,
     style=("#2ca02c", "-."),
 )
 IG = Method(
@@ -379,7 +380,7 @@ IG = Method(
     "volumetric information gain on an occupancy map of the captured views, replanned every view",
     lambda ctx, rng: InformationGainPolicy(ctx.volumetric, ctx.intrinsics, traced=ctx.traced),
     checks=("position_noise",),
-    planner=True,
+    geometric=True,
     style=("#e377c2", "-"),
 )
 HULL_IG = Method(
@@ -389,7 +390,7 @@ HULL_IG = Method(
         _hull_policy(ctx, rng),
         InformationGainPolicy(ctx.volumetric, ctx.intrinsics, traced=ctx.traced),
     ),
-    planner=True,
+    geometric=True,
     style=("#8c564b", "-"),
 )
 
@@ -403,7 +404,7 @@ IG_LEARNED = Method(
         scorer=ctx.scorer if ctx.scorer is not None else load_scorer(SHIPPED_SCORER),
     ),  # fmt: skip
     checks=("position_noise",),
-    planner=True,
+    geometric=True,
     learned_score=True,
     style=("#c51b7d", "--"),
 )
@@ -422,7 +423,7 @@ IG_AREA_FACTOR = Method(
     "meets the captured surface and the unknown layer around it",
     _ig_metric("area_factor"),
     checks=("position_noise",),
-    planner=True,
+    geometric=True,
     style=("#e7969c", "-."),
 )
 IG_PROXIMITY = Method(
@@ -430,7 +431,7 @@ IG_PROXIMITY = Method(
     "ig with Proximity Count: unknown voxels weighted by their closeness to the captured surface",
     _ig_metric("proximity_count"),
     checks=("position_noise",),
-    planner=True,
+    geometric=True,
     style=("#7b4173", ":"),
 )
 
@@ -468,14 +469,14 @@ DEFAULT_METHODS: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.b
 NETWORK_INPUTS: dict[str, str] = {
     m.name: m.network_input for m in METHODS.values() if m.network_input is not None
 }
-#: The planner methods, in report order (the one-shot plan first: the reconstruction plot's pick).
-PLANNERS: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.planner)
+#: The geometric planners, in report order (the one-shot plan first: the reconstruction plot's pick).
+GEOMETRIC: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.geometric)
 #: The baselines of the coverage comparisons: methods made to raise coverage that read no
 #: network, plan nothing and learn no score (random, spread, the oracle), in report order.
 BASELINES: tuple[str, ...] = tuple(
     m.name
     for m in METHODS.values()
-    if m.network_input is None and not m.planner and not m.learned_score and m.score == "coverage"
+    if m.network_input is None and not m.geometric and not m.learned_score and m.score == "coverage"
 )
 #: The methods that rank with a learned score file.
 SCORED: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.learned_score)

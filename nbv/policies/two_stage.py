@@ -29,7 +29,7 @@ class NetworkThenHullPolicy:
     state alone. ``network_views = 0`` is the one-shot planner itself.
 
     The default of ``network_views`` (``hull.network_views``,
-    :class:`~nbv.planning.settings.PlannerSettings`) is 2: the paper's Fig. 13 shows VIG nearly
+    :class:`~nbv.setcover.settings.HullSettings`) is 2: the paper's Fig. 13 shows VIG nearly
     saturating after 2-3 views, and each network view is one view fewer for the set cover's plan.
 
     Attributes:

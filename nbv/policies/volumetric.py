@@ -1,13 +1,13 @@
 """Volumetric information gain: the classical generate-and-test next-best view on an occupancy map.
 
-After every captured view the map (:mod:`nbv.planning.occupancy`) takes the view's rays, and each
+After every captured view the map (:mod:`nbv.infogain.occupancy`) takes the view's rays, and each
 unvisited candidate is scored by casting rays through the map
-(:mod:`nbv.planning.information_gain`); the best one is taken. The policy reads the captured
+(:mod:`nbv.infogain.gain`); the best one is taken. The policy reads the captured
 views' points and poses and the candidates' poses, nothing else.
 
 A dataset's view (a rendered one) carves free space along the image blocks no stored point falls
 in: its background is empty. A depth sensor's views come as a :class:`SensedViews` record, which
-says per view what its missing pixels mean (:class:`nbv.planning.occupancy.Misses`); by default
+says per view what its missing pixels mean (:class:`nbv.infogain.occupancy.Misses`); by default
 nothing, and the map leaves them unknown.
 """
 
@@ -22,9 +22,9 @@ import numpy as np
 from nbv.dataset.records import ViewData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
-from nbv.planning.information_gain import candidate_voxels, view_gains
-from nbv.planning.occupancy import Misses, OccupancyMap
-from nbv.planning.settings import VolumetricSettings
+from nbv.infogain.gain import candidate_voxels, view_gains
+from nbv.infogain.occupancy import Misses, OccupancyMap
+from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
@@ -37,7 +37,7 @@ class SensedViews(ViewData):
     Attributes:
         misses: per view, what its rays that return nothing mean: None (the default of every
             view not listed) leaves what the sensor did not measure unknown; a
-            :class:`~nbv.planning.occupancy.Misses` carves free space where its user declared it.
+            :class:`~nbv.infogain.occupancy.Misses` carves free space where its user declared it.
     """
 
     misses: list[Misses | None] = field(default_factory=list)

@@ -12,7 +12,7 @@ from pathlib import Path
 
 #: The folder of the shipped weights.
 FOLDER = Path(__file__).resolve().parent
-#: The learned score of ``ig_learned`` (JSON, :mod:`nbv.planning.gain_scorer`; ``python -m
+#: The learned score of ``ig_learned`` (JSON, :mod:`nbv.infogain.gain_scorer`; ``python -m
 #: train.scorer`` writes it).
 SHIPPED_SCORER = FOLDER / "ig_learned.json"
 

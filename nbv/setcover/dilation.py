@@ -1,7 +1,7 @@
 """Dilation of analytic view sets by ``eps``: unseen hull samples within ``eps`` of a view's points.
 
-The ``"analytic"`` view simulation of :func:`nbv.planning.view_sets.view_sets` starts from the
-visible sets (:mod:`nbv.planning.visibility`). The ray-cast sets it stands for hold every hull
+The ``"analytic"`` view simulation of :func:`nbv.setcover.view_sets.view_sets` starts from the
+visible sets (:mod:`nbv.setcover.visibility`). The ray-cast sets it stands for hold every hull
 sample within ``eps`` of a point the view captures, so with ``dilate=True`` the visible sets are
 dilated (:func:`dilate_view_sets`): samples the view does not see but that lie within ``eps`` of a
 point it captures, just behind the silhouette or just outside the image are added. Those lie within
@@ -24,7 +24,7 @@ between the triangles of the float32 render (under 0.1 % of pairs).
 The price is time: a whole 9-view plan takes about 25 ms with the dilation and 6 ms without, and
 on hulls of thousands of small triangles (the merged clouds of replanning) the view simulation
 goes from 11 ms to 350 ms. Planning therefore dilates only when asked (``dilate=True`` of
-:func:`nbv.planning.planner.plan`).
+:func:`nbv.setcover.oneshot.plan`).
 
 Distances are in world units; poses are camera-to-world, OpenCV convention.
 """
@@ -39,7 +39,7 @@ from scipy.spatial import ConvexHull, cKDTree
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.planning.visibility import (
+from nbv.setcover.visibility import (
     affine_at,
     analytic_visibility_faces,
     as_face_ids,
@@ -547,10 +547,10 @@ def dilate_view_sets(
     """Add to each view's visible set the samples its pixels' points come within ``eps`` of.
 
     Two kinds of samples a view does not see lie within ``eps = near.eps`` of the points a
-    ray-cast view of the hull captures (:func:`nbv.planning.view_sets.raycast_view_sets`): samples
+    ray-cast view of the hull captures (:func:`nbv.setcover.view_sets.raycast_view_sets`): samples
     just behind its silhouette, on a triangle turned away but within ``eps`` of one facing the
     camera (:func:`near_triangles`), and samples on facing triangles just outside the image, within
-    ``eps`` of its border planes (:func:`nbv.planning.visibility.analytic_visibility_faces` with
+    ``eps`` of its border planes (:func:`nbv.setcover.visibility.analytic_visibility_faces` with
     ``margin=eps``). Being within ``eps`` of the facing surface is not enough: near a silhouette
     that surface is seen nearly edge-on and the pixels' points on it lie far apart. So each such
     sample is tested against the pixels themselves: it is added when the ray of some pixel centre
@@ -560,7 +560,7 @@ def dilate_view_sets(
 
     Args:
         seen: ``(V, n)`` bool visible sets
-        (:func:`nbv.planning.visibility.analytic_visibility_faces`,
+        (:func:`nbv.setcover.visibility.analytic_visibility_faces`,
             no margin); not modified.
         samples: ``(n, 3)`` hull samples, world units.
         face_ids: ``(n,)`` index into ``hull.simplices`` of each sample's triangle.

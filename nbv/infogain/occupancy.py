@@ -39,7 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics, project, rays_through
-from nbv.planning.raytrace import flat_index, traverse
+from nbv.infogain.raytrace import flat_index, traverse
 from nbv.utils.fields import ConfigError, between, check_ranges, or_null, positive, setting
 
 #: Voxel states of :meth:`OccupancyMap.labels` (OctoMap's getLabels values).
@@ -210,7 +210,7 @@ class OccupancyMap:
 
     Attributes:
         settings: the grid and sensor model.
-        log_odds: (n^3,) float64, flat voxel index as :mod:`nbv.planning.raytrace`.
+        log_odds: (n^3,) float64, flat voxel index as :mod:`nbv.infogain.raytrace`.
     """
 
     def __init__(self, settings: OccupancySettings | None = None) -> None:

@@ -1,4 +1,4 @@
-"""A learned score of candidate views: a small perceptron over :mod:`nbv.planning.view_features`.
+"""A learned score of candidate views: a small perceptron over :mod:`nbv.infogain.view_features`.
 
 The weights are a plain JSON file (no pickle, readable without torch): the layers, the feature
 names they were trained on, and what made them (``python -m train.scorer`` writes it; the
@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from nbv.planning.view_features import FEATURES
+from nbv.infogain.view_features import FEATURES
 
 #: Format tag of the weight files.
 FORMAT = "nbv-gain-scorer-1"

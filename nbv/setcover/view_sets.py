@@ -9,9 +9,9 @@ from nbv.geometry.camera import Intrinsics, backproject
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.raycast import raycast_depth
 from nbv.geometry.scores import DEFAULT_EPS, covered_mask
-from nbv.planning.dilation import dilate_view_sets, near_triangles
-from nbv.planning.settings import SIMULATIONS
-from nbv.planning.visibility import analytic_visibility, analytic_visibility_faces, as_poses
+from nbv.setcover.dilation import dilate_view_sets, near_triangles
+from nbv.setcover.settings import SIMULATIONS
+from nbv.setcover.visibility import analytic_visibility, analytic_visibility_faces, as_poses
 
 
 def _hull_mesh(hull: ConvexHull | tuple[np.ndarray, np.ndarray] | None) -> tuple:
@@ -76,13 +76,13 @@ def view_sets(
     geometry:
 
     * ``dilate=False``: the samples the view sees, facing the camera and inside the image
-      (:func:`nbv.planning.visibility.analytic_visibility`): the exact visible part of the hull.
+      (:func:`nbv.setcover.visibility.analytic_visibility`): the exact visible part of the hull.
     * ``dilate=True``: those, plus the samples it does not see that lie within ``eps`` of a
       pixel's point: just behind the silhouette or just outside the image
-      (:func:`nbv.planning.dilation.near_triangles`, :func:`nbv.planning.dilation.dilate_view_sets`,
+      (:func:`nbv.setcover.dilation.near_triangles`, :func:`nbv.setcover.dilation.dilate_view_sets`,
       exact per pixel). The one remaining difference from ``"raycast"``: a sample on a face seen so
       obliquely that its pixels' points lie farther apart than ``eps`` is kept, though no point may
-      come that close. See :mod:`nbv.planning.dilation` for the measured agreement.
+      come that close. See :mod:`nbv.setcover.dilation` for the measured agreement.
 
     Args:
         samples: ``(n, 3)`` points on the hull (:func:`sample_hull`), world units.
@@ -96,8 +96,8 @@ def view_sets(
         hull: the hull (``ConvexHull``, or ``(vertices, faces)`` for ``"raycast"``).
         face_ids: ``(n,)`` triangle of each sample (:func:`sample_hull`). With a ``ConvexHull``
             ``hull``, the analytic path decides whole triangles at once
-            (:func:`nbv.planning.visibility.analytic_visibility_faces`); otherwise each sample on
-            its own (:func:`nbv.planning.visibility.analytic_visibility`). Both give the same sets.
+            (:func:`nbv.setcover.visibility.analytic_visibility_faces`); otherwise each sample on
+            its own (:func:`nbv.setcover.visibility.analytic_visibility`). Both give the same sets.
         dilate: analytic path only: dilate the visible sets by ``eps``. It needs ``hull`` as a
             ``ConvexHull`` and ``face_ids`` (the dilation works on the triangles). Closer to
             ``"raycast"`` but slower, see :func:`plan`. ``False`` (default): the visible sets.

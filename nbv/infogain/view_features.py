@@ -1,9 +1,9 @@
 """What a candidate view would see on the occupancy map, as a few numbers a learned scorer reads.
 
-:mod:`nbv.planning.information_gain` sums one metric over a candidate's rays. Here one pass
+:mod:`nbv.infogain.gain` sums one metric over a candidate's rays. Here one pass
 along each ray (stopping at its first occupied voxel) records several, and the candidate's
 sums are put on a common scale across the candidates of a decision, beside where the candidate
-lies relative to the captured views. :mod:`nbv.planning.gain_scorer` weighs them.
+lies relative to the captured views. :mod:`nbv.infogain.gain_scorer` weighs them.
 
 Per ray (the columns of :func:`ray_features`):
 
@@ -27,8 +27,8 @@ import numba
 import numpy as np
 
 from nbv.geometry.viewspace import angular_distances
-from nbv.planning.information_gain import frontier
-from nbv.planning.occupancy import OccupancyMap
+from nbv.infogain.gain import frontier
+from nbv.infogain.occupancy import OccupancyMap
 
 #: Names of the per-ray columns (module docstring), summed over a candidate's rays.
 RAY_FEATURES = ("unobserved", "touches_unknown", "meets_surface", "rear", "frontier",

@@ -50,8 +50,8 @@ import numpy as np
 from scipy import ndimage
 
 from nbv.geometry.camera import Intrinsics, rays_through
-from nbv.planning.occupancy import OccupancyMap, OccupancySettings
-from nbv.planning.raytrace import traverse
+from nbv.infogain.occupancy import OccupancyMap, OccupancySettings
+from nbv.infogain.raytrace import traverse
 
 #: The metrics of :func:`view_gains`.
 METRICS = ("unobserved", "entropy", "rear_side_voxel", "rear_side_entropy", "frontier",

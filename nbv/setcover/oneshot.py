@@ -10,11 +10,11 @@ from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.clouds import as_cloud
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.sph import equiangular_directions, signature_with_centroid, unit_vectors
-from nbv.planning.hull_sampling import convex_hull, sample_on_hull
-from nbv.planning.set_cover import DEFAULT_N_ITER, as_exclude, greedy_packed, pack_sets
-from nbv.planning.settings import PlannerSettings
-from nbv.planning.view_sets import view_sets
-from nbv.planning.visibility import as_poses
+from nbv.setcover.greedy import DEFAULT_N_ITER, as_exclude, greedy_packed, pack_sets
+from nbv.setcover.hull_sampling import convex_hull, sample_on_hull
+from nbv.setcover.settings import HullSettings
+from nbv.setcover.view_sets import view_sets
+from nbv.setcover.visibility import as_poses
 
 
 @dataclass
@@ -50,7 +50,7 @@ def plan(
     n_iter: int = DEFAULT_N_ITER,
     exclude: Iterable[int] = (),
     rng: np.random.Generator | int = 0,
-    settings: PlannerSettings = PlannerSettings(),  # noqa: B008 - frozen dataclass
+    settings: HullSettings = HullSettings(),  # noqa: B008 - frozen dataclass
     intrinsics: Intrinsics = Intrinsics(),  # noqa: B008 - frozen dataclass, immutable default
     eps: float = DEFAULT_EPS,
     poses: np.ndarray | None = None,
@@ -71,9 +71,9 @@ def plan(
             samples and the covering picks are those of the same seed before the fill's
             tie-break was random; only the fill's picks among tied views changed).
         settings: the planner's settings: ``n_samp`` hull samples, the view ``simulation``
-            (``"analytic"`` or ``"raycast"``, see :func:`nbv.planning.view_sets.view_sets`) and
+            (``"analytic"`` or ``"raycast"``, see :func:`nbv.setcover.view_sets.view_sets`) and
             ``dilate``: with ``"analytic"``, dilate the visible sets by ``eps``
-            (:mod:`nbv.planning.dilation`), so that the samples within ``eps`` of a pixel's point
+            (:mod:`nbv.setcover.dilation`), so that the samples within ``eps`` of a pixel's point
             just behind the silhouette or just outside the image count too, as they do for
             ``"raycast"``. Closer to ``"raycast"`` but about 4x slower, far more on hulls of
             many small triangles (measured in the module docstring). Off by default.

@@ -9,19 +9,19 @@ planes through the camera centre), for all views and points at once
 (:func:`analytic_visibility`). On the samples of a convex hull, :func:`analytic_visibility_faces`
 gives the same answer with much less work by deciding whole triangles at once, from
 :func:`facing_triangles` and :func:`corners_in_image`. A ``margin``
-widens the image by a distance: :mod:`nbv.planning.dilation` uses it to find the samples just
+widens the image by a distance: :mod:`nbv.setcover.dilation` uses it to find the samples just
 outside the image.
 
 These visible sets are the ``"analytic"`` view simulation of
-:func:`nbv.planning.view_sets.view_sets` without dilation. Measured against its ray-cast sets at 640
+:func:`nbv.setcover.view_sets.view_sets` without dilation. Measured against its ray-cast sets at 640
 x 480, ``eps = 0.00707``, 33 views at distance 1, 4096 samples, on (view, sample) pairs, they agree
 on 99.07 % for a sphere and 98.57 % for a box, on 96.9 to 98.9 % for hulls of single full-resolution
 views of common test meshes, and on 61 % for a flat one, whose back lies within ``eps`` of its front
-(the dilated sets: see :mod:`nbv.planning.dilation`).
+(the dilated sets: see :mod:`nbv.setcover.dilation`).
 
 Distances are in world units; poses are camera-to-world, OpenCV convention. The underscored
-helpers (argument checks, frustum planes, index ranges) also serve :mod:`nbv.planning.dilation` and
-:mod:`nbv.planning.planner`; they are not a public interface.
+helpers (argument checks, frustum planes, index ranges) also serve :mod:`nbv.setcover.dilation` and
+:mod:`nbv.setcover.oneshot`; they are not a public interface.
 """
 
 from __future__ import annotations
@@ -101,7 +101,7 @@ def analytic_visibility(
         margin: widen the image by this distance (world units, ``>= 0``): a facing point also
             counts when it lies outside the image but within ``margin`` of each of the four
             planes through the camera centre and the image borders
-            (:func:`nbv.planning.dilation.dilate_view_sets` finds the samples just outside the image
+            (:func:`nbv.setcover.dilation.dilate_view_sets` finds the samples just outside the image
             with ``margin = eps``). ``0`` is the exact test above.
 
     Returns:
