@@ -54,7 +54,7 @@ lint: $(STAMP)
 	$(VENV)/bin/lint-imports
 
 preview: $(STAMP)
-	$(PY) -m nbv.synthetic preview=outputs/synthetic_preview.png
+	$(PY) -m nbv.preview preview=outputs/synthetic_preview.png
 
 clean:
 	rm -rf $(VENV) outputs multirun .pytest_cache

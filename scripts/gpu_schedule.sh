@@ -66,7 +66,7 @@ if ! "$PYTHON" -c 'import torch; assert torch.cuda.is_available()' 2>/dev/null; 
   say "no CUDA device for $PYTHON (torch missing, a CPU build, or no GPU): nothing run"
   exit 2
 fi
-needs='import pytest, open3d, train.__main__, train.loop, nbv.dataset.generate'
+needs='import pytest, open3d, train.__main__, train.loop, nbv.dataset.generator'
 if ! missing=$("$PYTHON" -c "$needs" 2>&1); then
   say "$PYTHON lacks the project's packages: ${missing##*$'\n'}; nothing run"
   exit 2

@@ -11,8 +11,8 @@ import open3d as o3d
 
 import nbv.dataset
 from nbv.assets.weights import shipped_weights
-from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
+from nbv.dataset.generator import generate
+from nbv.dataset.generator_settings import GeneratorSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics, project
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.infogain.settings import VolumetricSettings
@@ -34,7 +34,7 @@ def capture_model(out: Path):
     """One synthetic model of the unseen categories, ray cast at 64 x 48 with 200 stored points a
     view, its original viewspace read (a :class:`nbv.dataset.records.ModelData`)."""
     summary = generate(
-        GenerationSettings(
+        GeneratorSettings(
             out_dir=out, synthetic=Synthetic({"train": 0, "valid": 0, "test": 0, "unseen": 1}),
             limit=1, intrinsics=CAMERA, n_gt=1000, eps=EPS, points_per_view=200,
             renderer=Renderer(backend="raycast"), progress=False,

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import trimesh
 
-from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
+from nbv.dataset.generator import generate
+from nbv.dataset.generator_settings import GeneratorSettings, Renderer, Synthetic
 from nbv.dataset.samples import SampleSettings, write_samples
 from nbv.geometry.camera import Intrinsics
 from nbv.infogain.settings import VolumetricSettings
@@ -30,9 +30,9 @@ def write_meshes(folder: Path, bad: bool = True) -> Path:
     return folder
 
 
-def small_settings(tmp_path: Path, **overrides) -> GenerationSettings:
+def small_settings(tmp_path: Path, **overrides) -> GeneratorSettings:
     """The folder source of :func:`write_meshes`, ray cast with the small camera; ``overrides``
-    are fields of :class:`GenerationSettings`."""
+    are fields of :class:`GeneratorSettings`."""
     base = dict(
         out_dir=tmp_path / "out",
         source="folder",
@@ -44,13 +44,13 @@ def small_settings(tmp_path: Path, **overrides) -> GenerationSettings:
         progress=False,
     )
     base.update(overrides)
-    return GenerationSettings(**base)
+    return GeneratorSettings(**base)
 
 
 def make_train_dataset(out: Path) -> Path:
     """One train and one valid synthetic model per training category, ray cast at 48 x 36, with
     coverage samples."""
-    settings = GenerationSettings(
+    settings = GeneratorSettings(
         out_dir=out,
         synthetic=Synthetic(counts={"train": 1, "valid": 1, "test": 0, "unseen": 0}),
         intrinsics=Intrinsics.centred(48, 36, 36.0),
@@ -73,7 +73,7 @@ def make_tiny_dataset(out: Path, models: int = 2) -> Path:
     """The first ``models`` synthetic models of the unseen categories (split test), ray cast
     with a 64 x 48 camera, 1000 ground-truth points, 50 stored points a view."""
     summary = generate(
-        GenerationSettings(
+        GeneratorSettings(
             out_dir=out,
             synthetic=Synthetic(counts={"train": 0, "valid": 0, "test": 0, "unseen": 1}),
             limit=models,

@@ -348,6 +348,6 @@ def test_the_job_log_gets_the_info_messages_and_stdout_stays_clean(tmp_path):
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     log = (tmp_path / "run" / "dataset.log").read_text()
-    assert "[nbv.dataset.generate][INFO]" in log and "1/1 models (1 made now" in log
+    assert "[nbv.dataset.generator][INFO]" in log and "1/1 models (1 made now" in log
     assert "1/1 models" in done.stderr and done.stdout == ""
     assert (tmp_path / "run" / ".hydra" / "config.yaml").exists()

@@ -20,8 +20,8 @@ from hydra import compose, initialize_config_dir
 import nbv.dataset
 from nbv.dataset import show
 from nbv.dataset.config import ENTRY
-from nbv.dataset.generate import exit_status, generate, nothing_made
-from nbv.dataset.generation import Renderer
+from nbv.dataset.generator import exit_status, generate, nothing_made
+from nbv.dataset.generator_settings import Renderer
 from nbv.dataset.samples import SampleSettings
 from nbv.dataset.schema import config_json
 from nbv.dataset.views import view_data

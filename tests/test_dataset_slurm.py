@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from needs import require_binary
 
-from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
+from nbv.dataset.generator import generate
+from nbv.dataset.generator_settings import GeneratorSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics
 
 pytestmark = [pytest.mark.slurm, pytest.mark.blender]
@@ -41,7 +41,7 @@ def local_run(out: Path, backend: str, blender: str | None = None) -> None:
     """The same two shards made in this process (``blender``: a binary, None = the bpy wheel)."""
     for shard in range(2):
         generate(
-            GenerationSettings(
+            GeneratorSettings(
                 out_dir=out,
                 synthetic=Synthetic(counts={"train": 1, "valid": 0, "test": 0, "unseen": 0}),
                 limit=1,

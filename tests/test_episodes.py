@@ -7,7 +7,7 @@ import pytest
 from datagen import small_settings
 
 import nbv.dataset
-from nbv.dataset.generate import generate
+from nbv.dataset.generator import generate
 from nbv.policies.baselines import OraclePolicy, RandomPolicy
 from nbv.policies.episode import auc, curves, run_episode
 

@@ -32,8 +32,8 @@ from scipy.io import loadmat
 from scipy.spatial import cKDTree
 
 import nbv.dataset
-from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Noise, Renderer, Synthetic
+from nbv.dataset.generator import generate
+from nbv.dataset.generator_settings import GeneratorSettings, Noise, Renderer, Synthetic
 from nbv.eval.config import DisturbSettings, EvalSettings, PrepareSettings
 from nbv.eval.evaluate import run as run_eval
 from nbv.export.config import ExportSettings
@@ -259,7 +259,7 @@ def test_a_dataset_that_kept_every_point_exports_its_stored_points_in_ascii(tmp_
 def test_a_noisy_synthetic_dataset_is_recast_exactly_from_its_seed(tmp_path):
     """The synthetic shape is rebuilt from seed, category and index, and the depth noise drawn
     again over both viewspaces in the generator's order: every view's bits come back."""
-    settings = GenerationSettings(
+    settings = GeneratorSettings(
         out_dir=tmp_path / "data", seed=3,
         synthetic=Synthetic(counts={"train": 0, "valid": 0, "test": 1, "unseen": 0}), limit=2,
         intrinsics=SMALL_CAMERA, n_gt=2000, eps=EPS, points_per_view=50,

@@ -377,11 +377,11 @@ def test_a_flat_mesh_seen_edge_on_plans_with_an_empty_cloud_and_says_so(corpus, 
 
 @pytest.mark.slow
 def test_the_dataset_generator_makes_every_readable_file_and_records_the_rest(corpus, tmp_path):
-    from nbv.dataset.generate import generate
-    from nbv.dataset.generation import GenerationSettings
+    from nbv.dataset.generator import generate
+    from nbv.dataset.generator_settings import GeneratorSettings
     from nbv.geometry.camera import Intrinsics
 
-    summary = generate(GenerationSettings(
+    summary = generate(GeneratorSettings(
         source="folder", root=str(corpus), out_dir=tmp_path / "out", n_gt=500,
         viewspaces={"original": "original"}, intrinsics=Intrinsics.centred(64, 48),
         points_per_view=50, progress=False,

@@ -12,8 +12,8 @@ from datagen import SMALL_CAMERA, make_tiny_dataset
 from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
-from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Renderer, Synthetic
+from nbv.dataset.generator import generate
+from nbv.dataset.generator_settings import GeneratorSettings, Renderer, Synthetic
 from nbv.eval.config import DisturbSettings, EvalConfigError, EvalSettings, PrepareSettings
 from nbv.eval.evaluate import evaluate
 from nbv.geometry.viewspace import ViewspaceError, elevation, get_viewspace, is_named
@@ -104,7 +104,7 @@ def test_the_evaluation_renders_a_lacking_viewspace_as_the_dataset_would(lacking
     assert info.sizes == {"original": 33, "hemisphere_12": 12} and info.rendered is not None
     # Independently: the same models rendered from the hemisphere by a dataset of their own.
     direct = generate(
-        GenerationSettings(
+        GeneratorSettings(
             out_dir=tmp / "direct",
             synthetic=Synthetic(counts={"train": 0, "valid": 0, "test": 0, "unseen": 1}),
             limit=2,

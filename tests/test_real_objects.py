@@ -24,7 +24,7 @@ from nbv.assets.real_objects import (
     default_root,
     ycb_group,
 )
-from nbv.dataset.generate import generate
+from nbv.dataset.generator import generate
 from nbv.dataset.sources import list_models
 
 ROOT = Path(__file__).resolve().parents[1]

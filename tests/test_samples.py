@@ -11,7 +11,7 @@ from datagen import small_settings
 from scipy.spatial import ConvexHull, cKDTree
 
 import nbv.dataset
-from nbv.dataset.generate import generate
+from nbv.dataset.generator import generate
 from nbv.dataset.samples import (
     SampleSettings,
     load_samples,

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 from nbv.assets.meshes import sample_surface
-from nbv.dataset.generate import view_data
+from nbv.dataset.generator import view_data
 from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.scores import coverage_gains
 from nbv.geometry.sph import signature

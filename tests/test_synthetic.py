@@ -232,12 +232,12 @@ def test_preview_writes_the_grid(tmp_path):
 
 @pytest.mark.slow
 def test_command_line(tmp_path):
-    """``python -m nbv.synthetic``: the options are keys; a bad one refuses the run (status 2)."""
+    """``python -m nbv.preview``: the options are keys; a bad one refuses the run (status 2)."""
     path = tmp_path / "cli.png"
     run = [
         sys.executable,
         "-m",
-        "nbv.synthetic",
+        "nbv.preview",
         f"preview={path}",
         f"hydra.run.dir={tmp_path / 'run'}",
     ]
@@ -250,5 +250,5 @@ def test_command_line(tmp_path):
     )
     assert bad.returncode == 2
     assert bad.stderr.strip().splitlines()[-1] == (
-        "nbv.synthetic: per_category=0: must be an integer >= 1"
+        "nbv.preview: per_category=0: must be an integer >= 1"
     )

@@ -16,12 +16,12 @@ PROG = "nbv.dataset"
 
 
 def start(cfg) -> int:
-    """Build the settings and run the shard: the exit status of :func:`nbv.dataset.generate.run`.
+    """Build the settings and run the shard: the exit status of :func:`nbv.dataset.generator.run`.
 
     The work runs here, not in a ``finish``: a ``ValueError`` it raises (a catalogue, a viewspace,
     a folder made with other settings) refuses the run like a bad setting.
     """
-    from nbv.dataset.generate import run
+    from nbv.dataset.generator import run
 
     settings = ENTRY.build(cfg)
     return run(settings, settings.sample_settings())

@@ -2,7 +2,7 @@
 ``conf/dataset.yaml``'s keys (the hydra schema ``dataset_schema`` is derived from it by
 :mod:`nbv.config.settings`).
 
-The generation's keys are the library's :class:`~nbv.dataset.generation.GenerationSettings`;
+The generation's keys are the library's :class:`~nbv.dataset.generator_settings.GeneratorSettings`;
 this module adds only what the command has beyond them: the YAML form of the camera (the shared
 ``conf/camera/`` group) and the ``samples:`` group, which it turns into the library's
 :class:`~nbv.dataset.samples.SampleSettings`.
@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 from nbv.config.schema import CameraConfig, ConfigError, PathsConfig, ProtocolConfig
 from nbv.config.settings import Entry, setting
-from nbv.dataset.generation import GenerationSettings, Renderer
+from nbv.dataset.generator_settings import GeneratorSettings, Renderer
 from nbv.dataset.samples import SampleSettings
 from nbv.geometry.camera import Intrinsics
 from nbv.utils.fields import fields_of
@@ -46,10 +46,10 @@ class Samples(SampleSettings, _Switch):
 
 
 @dataclass(frozen=True)
-class Settings(GenerationSettings):
+class Settings(GeneratorSettings):
     """Everything ``python -m nbv.dataset`` needs: the generation's settings, camera and samples.
 
-    The fields of :class:`~nbv.dataset.generation.GenerationSettings`, and:
+    The fields of :class:`~nbv.dataset.generator_settings.GeneratorSettings`, and:
 
     Attributes:
         intrinsics: the camera, key ``camera``: ``{width, height, focal}`` (pixels) of

@@ -47,7 +47,7 @@ VIEWSPACES = ("original", "permuted")
 VIEWSPACE_CHOICES = ("original", "permuted", "sphere_<n>", "hemisphere_<n>", "a file of x y z rows")
 BACKENDS = ("raycast", "blender")
 # TODO(issue 28): one shared constant for the points kept per view (also nbv/plan/config.py
-# and nbv/dataset/generation.py); conf/protocol/ sets the value users get.
+# and nbv/dataset/generator_settings.py); conf/protocol/ sets the value users get.
 
 #: The error of a setting that cannot be used (one class for every entry point).
 EvalConfigError = ConfigError
@@ -108,7 +108,7 @@ def _group_ranges(obj: Any, group: str) -> None:
 
 @dataclass(frozen=True)
 class PrepareSettings:
-    """How ``mesh_dir`` becomes a dataset (:func:`nbv.dataset.generate.generate`,
+    """How ``mesh_dir`` becomes a dataset (:func:`nbv.dataset.generator.generate`,
     ``source=folder``). The result is cached in ``<dir>/<hash of the files and these settings>/``,
     so reruns reuse it.
 

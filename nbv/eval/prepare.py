@@ -6,7 +6,7 @@ the views of a viewspace a dataset lacks (``protocol=hemisphere_30`` on the defa
 rendered for its models with the settings it recorded.
 
 A mesh folder is rendered from both viewspaces and scored exactly like a generated dataset
-(:func:`nbv.dataset.generate.generate` with ``source="folder"``). The result lives in
+(:func:`nbv.dataset.generator.generate` with ``source="folder"``). The result lives in
 ``<cache_dir>/<hash>/``, where the hash covers the mesh files (relative path, size, modification
 time) and every setting that shapes the data, ``eps`` and the coverage test included; a later
 evaluation with the same folder and settings reuses it instead of rendering again.
@@ -23,8 +23,8 @@ import numpy as np
 
 import nbv.dataset
 from nbv.assets.meshes import MESH_SUFFIXES
-from nbv.dataset.generate import generate
-from nbv.dataset.generation import GenerationSettings, Renderer
+from nbv.dataset.generator import generate
+from nbv.dataset.generator_settings import GeneratorSettings, Renderer
 from nbv.dataset.reader import Dataset
 from nbv.dataset.records import ModelData
 from nbv.eval.config import PrepareSettings
@@ -98,7 +98,7 @@ def prepare_meshes(
     if done.exists():
         return out, [tuple(f) for f in json.loads(done.read_text())["failures"]]
     summary = generate(
-        GenerationSettings(
+        GeneratorSettings(
             out_dir=out,
             source=source,
             root=str(mesh_dir),
@@ -182,7 +182,7 @@ def rendered_viewspaces(
         return out
     log.info("rendering viewspaces %s for %d models of %s (once; cached in %s)",
              ", ".join(names), len(keys), dataset_dir, out)  # fmt: skip
-    settings = GenerationSettings.from_identity(
+    settings = GeneratorSettings.from_identity(
         config, out, viewspaces=sources, models=tuple(sorted(keys)), progress=progress
     )
     summary = generate(settings)

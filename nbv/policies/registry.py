@@ -469,7 +469,8 @@ DEFAULT_METHODS: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.b
 NETWORK_INPUTS: dict[str, str] = {
     m.name: m.network_input for m in METHODS.values() if m.network_input is not None
 }
-#: The geometric planners, in report order (the one-shot plan first: the reconstruction plot's pick).
+#: The geometric planners, in report order (the one-shot plan first: the reconstruction
+#: plot's pick).
 GEOMETRIC: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.geometric)
 #: The baselines of the coverage comparisons: methods made to raise coverage that read no
 #: network, plan nothing and learn no score (random, spread, the oracle), in report order.

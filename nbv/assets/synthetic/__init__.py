@@ -18,7 +18,7 @@ scaled so that the bounding-box diagonal is 1, so it fits in a sphere of radius 
 * :func:`make_model` builds one model of a category from a ``numpy.random.Generator``.
 * :func:`catalogue` lists the models of the default dataset (:data:`DEFAULT_COUNTS`);
   :func:`build` makes one of them from a seed, independently of every other model.
-* :func:`preview` draws a contact sheet (``python -m nbv.synthetic preview=out.png``).
+* :func:`preview` draws a contact sheet (``python -m nbv.preview preview=out.png``).
 
 Modules, imports going one way (each imports only the ones above it):
 

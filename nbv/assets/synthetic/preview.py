@@ -1,7 +1,7 @@
 """A contact sheet of the synthetic shapes, drawn by Open3D ray casting.
 
-``python -m nbv.synthetic preview=out.png [seed=S] [per_category=K] [tile=T]`` (or ``make
-preview``, :mod:`nbv.synthetic`) writes one row per category (training ones blue, unseen ones
+``python -m nbv.preview preview=out.png [seed=S] [per_category=K] [tile=T]`` (or ``make
+preview``, :mod:`nbv.preview`) writes one row per category (training ones blue, unseen ones
 orange).
 """
 

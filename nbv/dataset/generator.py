@@ -31,7 +31,7 @@ from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
 from nbv.assets.meshes import MeshError, sample_surface
-from nbv.dataset.generation import GenerationSettings
+from nbv.dataset.generator_settings import GeneratorSettings
 from nbv.dataset.records import ModelData
 from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
 from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
@@ -103,7 +103,7 @@ def _completed_keys(shard_file: Path, parts_dir: Path) -> tuple[dict[str, Path],
     return done, failures
 
 
-def _check_identity(settings: GenerationSettings, shard_file: Path, parts_dir: Path) -> None:
+def _check_identity(settings: GeneratorSettings, shard_file: Path, parts_dir: Path) -> None:
     """Refuse to mix data made with other settings into an existing shard."""
     wanted = config_json(settings.data_identity())
     found = None
@@ -123,7 +123,7 @@ def _check_identity(settings: GenerationSettings, shard_file: Path, parts_dir: P
     (parts_dir / "config.json").write_text(wanted)
 
 
-def _root_attrs(settings: GenerationSettings) -> dict:
+def _root_attrs(settings: GeneratorSettings) -> dict:
     return {
         "schema_version": SCHEMA_VERSION,
         "eps": settings.eps,
@@ -144,7 +144,7 @@ class _Prepared:
     rng: np.random.Generator
 
 
-def _prepare(model: SourceModel, settings: GenerationSettings, poses: np.ndarray):
+def _prepare(model: SourceModel, settings: GeneratorSettings, poses: np.ndarray):
     """Normalise the mesh and sample the ground truth: (render job, prepared) of one model."""
     rng = named_rng(settings.seed, model.key)
     mesh, center, scale = load_normalised(model, settings.seed)
@@ -154,7 +154,7 @@ def _prepare(model: SourceModel, settings: GenerationSettings, poses: np.ndarray
 
 
 def _finish(
-    prep: _Prepared, depth: np.ndarray, poses: dict, settings: GenerationSettings
+    prep: _Prepared, depth: np.ndarray, poses: dict, settings: GeneratorSettings
 ) -> ModelData:
     """Turn one model's rendered depth (all viewspaces stacked) into its dataset record (the
     sensor model of ``settings.noise`` applied first, seeded by the seed and the model)."""
@@ -197,7 +197,7 @@ def _finish(
     )
 
 
-def _shard_models(settings: GenerationSettings) -> list:
+def _shard_models(settings: GeneratorSettings) -> list:
     """The models of the source that this shard makes, in order: those of ``models`` when it is
     set, every ``num_shards``-th from ``shard`` on, the first ``limit`` of them."""
     models = list_models(
@@ -215,7 +215,7 @@ def _shard_models(settings: GenerationSettings) -> list:
     return mine if settings.limit is None else mine[: settings.limit]
 
 
-def generate(settings: GenerationSettings) -> Summary:
+def generate(settings: GeneratorSettings) -> Summary:
     """Generate (or resume) one shard of a dataset; see the module docstring.
 
     Returns:
@@ -292,7 +292,7 @@ def generate(settings: GenerationSettings) -> Summary:
     return summary
 
 
-def run(settings: GenerationSettings, sample_settings: SampleSettings | None) -> int:
+def run(settings: GeneratorSettings, sample_settings: SampleSettings | None) -> int:
     """Generate the shard, then its training samples; log the summary; return the exit status.
 
     Raises:

@@ -1,7 +1,7 @@
-"""``python -m nbv.synthetic preview=out.png [seed=S] [per_category=K] [tile=T]`` (or ``make
+"""``python -m nbv.preview preview=out.png [seed=S] [per_category=K] [tile=T]`` (or ``make
 preview``): draw the contact sheet of the synthetic shapes.
 
-Settings: ``conf/synthetic.yaml`` (declared by :class:`nbv.synthetic.config.PreviewSettings`). A
+Settings: ``conf/preview.yaml`` (declared by :class:`nbv.preview.config.PreviewSettings`). A
 refused setting ends with one line on stderr and exit status 2 (:mod:`nbv.config.cli`).
 """
 
@@ -9,11 +9,11 @@ import logging
 import time
 
 from nbv.config.cli import command
-from nbv.synthetic.config import ENTRY, PreviewSettings
+from nbv.preview.config import ENTRY, PreviewSettings
 
-PROG = "nbv.synthetic"
+PROG = "nbv.preview"
 # Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.
-log = logging.getLogger("nbv.synthetic")
+log = logging.getLogger("nbv.preview")
 
 
 def finish(s: PreviewSettings) -> None:
@@ -24,7 +24,7 @@ def finish(s: PreviewSettings) -> None:
     log.info("wrote %s in %.1f s", s.preview, time.perf_counter() - begin)
 
 
-main = command(PROG, "synthetic", ENTRY.build, finish)
+main = command(PROG, "preview", ENTRY.build, finish)
 
 if __name__ == "__main__":
     main()

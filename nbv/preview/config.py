@@ -1,5 +1,5 @@
-"""The settings of ``python -m nbv.synthetic``: :class:`PreviewSettings`, the one declaration of
-``conf/synthetic.yaml``'s keys (the hydra schema ``synthetic_schema`` is derived from it)."""
+"""The settings of ``python -m nbv.preview``: :class:`PreviewSettings`, the one declaration of
+``conf/preview.yaml``'s keys (the hydra schema ``preview_schema`` is derived from it)."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ from nbv.utils.fields import at_least
 
 @dataclass(frozen=True)
 class PreviewSettings:
-    """The contact sheet of the synthetic shapes that ``python -m nbv.synthetic`` draws.
+    """The contact sheet of the synthetic shapes that ``python -m nbv.preview`` draws.
 
     One row per category, ``per_category`` models of each (:func:`nbv.assets.synthetic.preview`).
 
@@ -34,4 +34,4 @@ class PreviewSettings:
         check_ranges(self)
 
 
-ENTRY = Entry("synthetic_schema", PreviewSettings, extra=(("paths", PathsConfig),))
+ENTRY = Entry("preview_schema", PreviewSettings, extra=(("paths", PathsConfig),))

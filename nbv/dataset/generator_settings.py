@@ -1,5 +1,5 @@
-"""The settings of dataset generation (:func:`nbv.dataset.generate.generate`), nested like
-``conf/dataset.yaml``: :class:`GenerationSettings` with its groups :class:`Synthetic`,
+"""The settings of dataset generation (:func:`nbv.dataset.generator.generate`), nested like
+``conf/dataset.yaml``: :class:`GeneratorSettings` with its groups :class:`Synthetic`,
 :class:`Renderer` and :class:`Noise`.
 
 These are the library's settings: code makes them directly (tests, the evaluator's prepared
@@ -34,7 +34,7 @@ from nbv.utils.fields import (
     setting,
 )
 
-__all__ = ["BACKENDS", "GenerationSettings", "Noise", "Renderer", "Synthetic"]
+__all__ = ["BACKENDS", "GeneratorSettings", "Noise", "Renderer", "Synthetic"]
 
 
 @dataclass(frozen=True)
@@ -129,8 +129,8 @@ DEFAULT_VIEWSPACES = {"original": "original", "permuted": "permuted"}
 
 
 @dataclass(frozen=True)
-class GenerationSettings:
-    """Everything :func:`nbv.dataset.generate.generate` needs (``conf/dataset.yaml``'s keys but
+class GeneratorSettings:
+    """Everything :func:`nbv.dataset.generator.generate` needs (``conf/dataset.yaml``'s keys but
     ``samples:``).
 
     Attributes:
@@ -227,7 +227,7 @@ class GenerationSettings:
         }
 
     @classmethod
-    def from_identity(cls, identity: dict, out_dir: Path, **changes: Any) -> GenerationSettings:
+    def from_identity(cls, identity: dict, out_dir: Path, **changes: Any) -> GeneratorSettings:
         """The settings a dataset recorded (its :meth:`data_identity`, the root attribute
         ``config``), to render more of the same data: ``changes`` replace fields (e.g.
         ``viewspaces``, ``models``); ``num_shards`` is 1 and ``progress`` as given.
