@@ -17,12 +17,12 @@ from nbv.geometry.camera import Intrinsics, project
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.config import PlanSettings
-from nbv.plan.method import policy_rng
-from nbv.plan.planner import Planner
-from nbv.plan.result import PlanResult
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import run_episode
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
+from nbv.scan.method import policy_rng
+from nbv.scan.planner import Planner
+from nbv.scan.result import PlanResult
 from nbv.setcover.settings import HullSettings
 
 CAMERA = Intrinsics.centred(64, 48, 48.0)
@@ -97,4 +97,4 @@ def write_folder(folder: Path, model, views: list[int], kind: str, scale=1.0, sh
 def plan_captures(settings: PlanSettings) -> PlanResult:
     """What ``python -m nbv.plan captures=...`` plans: the folder loaded as the command loads it,
     then one decision."""
-    return Planner.load(settings.captures, settings).decide()
+    return Planner.load(settings.captures, settings, views=settings.views).decide()

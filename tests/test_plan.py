@@ -20,10 +20,11 @@ from nbv.config.schema import ConfigError
 from nbv.geometry.camera import opencv_to_blender
 from nbv.geometry.viewspace import original_viewspace
 from nbv.geometry.viewspace_generators import rings
-from nbv.plan.config import ENTRY, PLANNABLE, ObjectSettings, PlanSettings, ViewspaceSettings
-from nbv.plan.frame import ObjectFrame, candidate_poses, object_frame
-from nbv.plan.placement import match_views
+from nbv.plan.config import ENTRY, PlanSettings
 from nbv.policies.registry import METHODS
+from nbv.scan.frame import ObjectFrame, candidate_poses, object_frame
+from nbv.scan.placement import match_views
+from nbv.scan.settings import PLANNABLE, ObjectSettings, ViewspaceSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 CONF = ROOT / "conf"

@@ -17,12 +17,13 @@ from capturegen import CAMERA, EPS, START, capture_model, episode_views, plan_ca
 from nbv.geometry.camera import Intrinsics, opencv_to_blender
 from nbv.infogain.gain import view_gains
 from nbv.infogain.settings import VolumetricSettings
-from nbv.plan.captures import CaptureError, check_rigid, read_captures, write_captures
-from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
-from nbv.plan.method import policy_rng
-from nbv.plan.object_estimate import EstimateSettings, estimate_object
+from nbv.plan.config import PlanSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.registry import METHODS, MethodContext
+from nbv.scan.captures import CaptureError, check_rigid, read_captures, write_captures
+from nbv.scan.method import policy_rng
+from nbv.scan.object_estimate import EstimateSettings, estimate_object
+from nbv.scan.settings import ObjectSettings, ViewspaceSettings
 from nbv.setcover.settings import HullSettings
 
 

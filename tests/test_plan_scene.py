@@ -15,15 +15,16 @@ from nbv.assets.synthetic.catalogue import make_model
 from nbv.geometry.camera import Intrinsics, backproject
 from nbv.infogain.occupancy import FREE, OCCUPIED, UNKNOWN
 from nbv.infogain.settings import VolumetricSettings
-from nbv.plan.candidates import REASONS, CandidateSettings, limit_candidates
-from nbv.plan.captures import read_captures, write_captures
-from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
-from nbv.plan.frame import ObjectFrame
-from nbv.plan.object_estimate import Plane
-from nbv.plan.placement import sensed_misses
+from nbv.plan.config import PlanSettings
 from nbv.policies.episode import captured_state
 from nbv.policies.volumetric import InformationGainPolicy, SensedViews
 from nbv.render.scene import OBJECT, TABLE, WALL, SceneSettings, table_scene
+from nbv.scan.candidates import REASONS, CandidateSettings, limit_candidates
+from nbv.scan.captures import read_captures, write_captures
+from nbv.scan.frame import ObjectFrame
+from nbv.scan.object_estimate import Plane
+from nbv.scan.placement import sensed_misses
+from nbv.scan.settings import ObjectSettings, ViewspaceSettings
 
 CAMERA = Intrinsics.centred(320, 240, 238.0)
 #: The candidates: a sphere of 32 directions about the object, 0.45 m out (z up).
@@ -80,7 +81,7 @@ def test_the_object_is_found_without_object_settings(noisy, tmp_path):
 
 
 def test_the_table_and_the_wall_are_not_counted_as_the_object(noisy, tmp_path):
-    from nbv.plan.object_estimate import EstimateSettings, estimate_object
+    from nbv.scan.object_estimate import EstimateSettings, estimate_object
 
     captures, _ = read_captures(folder_of(noisy, tmp_path / "caps"))
     est = estimate_object(noisy.poses, [c.points for c in captures], np.array([0.0, 0.0, 1.0]),

@@ -27,10 +27,11 @@ from capturegen import (
 from nbv.assets.synthetic.catalogue import make_model
 from nbv.config.schema import ConfigError
 from nbv.geometry.camera import Intrinsics, opencv_to_blender
-from nbv.plan import NextView, Planner
-from nbv.plan.captures import CaptureError
-from nbv.plan.config import ObjectSettings, PlanSettings, ViewspaceSettings
+from nbv.plan.config import PlanSettings
 from nbv.render.scene import SceneSettings, table_scene
+from nbv.scan import NextView, Planner
+from nbv.scan.captures import CaptureError
+from nbv.scan.settings import ObjectSettings, ScanSettings, ViewspaceSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 SHELF = ROOT.parent / "shared" / "captures" / "shelf_bin"
@@ -229,7 +230,7 @@ def test_bad_views_are_refused_in_one_line_naming_the_view(args, message):
 def test_bad_settings_and_calls_are_refused_naming_the_key():
     with pytest.raises(ConfigError, match=r"viewspace.n=0: must be an integer >= 2"):
         Planner(viewspace={"kind": "sphere", "n": 0})
-    with pytest.raises(ConfigError, match="colour: unknown key; allowed: mesh, captures"):
+    with pytest.raises(ConfigError, match="colour: unknown key; allowed: method, checkpoint"):
         Planner(colour="red")
     with pytest.raises(ConfigError, match="method='oracle' reads the ground truth"):
         Planner(method="oracle")
@@ -240,12 +241,35 @@ def test_bad_settings_and_calls_are_refused_naming_the_key():
 
 
 def test_settings_and_overrides_build_the_same_planner():
-    given = PlanSettings(out_dir=Path("plan"), method="ig_learned",
-                         viewspace=ViewspaceSettings(kind="sphere", n=60, up="z"))  # fmt: skip
+    given = ScanSettings(method="ig_learned", viewspace=ViewspaceSettings(kind="sphere", n=60,
+                                                                          up="z"))  # fmt: skip
     a = Planner(given)
     b = Planner(method="ig_learned", viewspace={"kind": "sphere", "n": 60, "up": "z"})
-    assert a.settings == b.settings
+    assert a.settings == b.settings == given
     assert Planner(given, n_views=20).settings.n_views == 20
+    # The command's settings give the planner their scan keys, nothing else.
+    command = PlanSettings(out_dir=Path("plan"), method="ig_learned", page=False,
+                           viewspace=ViewspaceSettings(kind="sphere", n=60, up="z"))  # fmt: skip
+    assert type(Planner(command).settings) is ScanSettings and Planner(command).settings == given
+
+
+def test_the_planner_api_runs_without_hydra():
+    """A robot's process imports the planner, decides and saves without hydra or OmegaConf."""
+    code = (
+        "import sys, numpy as np\n"
+        "from nbv.scan import Planner\n"
+        "p = Planner(method='spread', viewspace={'kind': 'sphere', 'n': 20}, n_views=4)\n"
+        "p.add_view(np.random.default_rng(0).normal(size=(200, 3)) * 0.05 + [0, 0, 1], np.eye(4))\n"
+        "p.next_view()\n"
+        "bad = [m for m in sys.modules if m.split('.')[0] in ('hydra', 'omegaconf')]\n"
+        "print(bad)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=ROOT, check=True)  # fmt: skip
+    assert out.stdout.strip() == "[]"
+    import nbv.plan
+
+    assert nbv.plan.Planner is Planner  # the command's package names the library's class
 
 
 def snippet(title: str, lang: str = "python") -> str:

@@ -45,7 +45,7 @@ def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrin
     parts = [points if v == view else np.zeros((0, 3)) for v in range(len(poses))]
     state = captured_state(poses, parts, [view])
     ctx = MethodContext({}, hull, intrinsics, DEFAULT_EPS, EPISODE_VIEWS, VolumetricSettings())
-    # The generator of nbv.plan.method.policy_rng.
+    # The generator of nbv.scan.method.policy_rng.
     return METHODS[method].build(ctx, named_rng(0, "plan", method))(state)
 
 

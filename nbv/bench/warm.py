@@ -1,4 +1,4 @@
-"""Benchmark rows of the warm planner (:class:`nbv.plan.planner.Planner`) in a robot's loop.
+"""Benchmark rows of the warm planner (:class:`nbv.scan.planner.Planner`) in a robot's loop.
 
 The scene: a synthetic cabinet on a table with a wall behind it (:mod:`nbv.render.scene`), seen by
 a 640 x 480 depth camera with the sensor's noise, dropout, missing pixels and 1.2 m range. The
@@ -9,7 +9,7 @@ decides ``decisions`` times, each after the view it chose before is rendered and
   candidates limited and traced, the policy built, the map's first view);
 * **warm** (``ours``): the median of ``add_view`` of a new 640 x 480 view plus ``next_view``;
 * **reference**: the same last decision by a fresh planner on the saved views
-  (:meth:`~nbv.plan.planner.Planner.load`: what ``python -m nbv.plan captures=...`` does after
+  (:meth:`~nbv.scan.planner.Planner.load`: what ``python -m nbv.plan captures=...`` does after
   reading the files, without its process start); it must choose the same view.
 
 Rendering the views is not timed.
@@ -54,8 +54,8 @@ def warm_decisions(method: str, decisions: int = 6) -> dict:
         the first decision, of each warm one, of the fresh planner's last decision; the chosen
         viewspace indices; whether the fresh planner chose the warm one's last view.
     """
-    from nbv.plan.planner import Planner
     from nbv.render.scene import SceneSettings, table_scene
+    from nbv.scan.planner import Planner
 
     mesh = _scene()
     scene = table_scene(*mesh, CAMERA, SceneSettings(views=1), seed=0)

@@ -29,7 +29,6 @@ from __future__ import annotations
 import copy
 import dataclasses
 import functools
-import types
 import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -38,8 +37,11 @@ from typing import Any
 
 from omegaconf import MISSING
 
-from nbv.config.schema import ConfigError, register, validated
-from nbv.utils.fields import check, check_ranges, fields_of, key_of, setting
+from nbv.config.schema import register, validated
+from nbv.utils.fields import check_ranges, fields_of, key_of, setting
+from nbv.utils.settings_values import construct, plain
+from nbv.utils.settings_values import is_settings as _is_settings
+from nbv.utils.settings_values import union_args as _union_args
 
 __all__ = [
     "Entry",
@@ -51,16 +53,6 @@ __all__ = [
     "schema",
     "setting",
 ]  # fmt: skip  (check_ranges, key_of, setting: from nbv.utils.fields, used with the rest)
-
-
-def _union_args(kind: Any) -> tuple[Any, ...] | None:
-    if typing.get_origin(kind) in (typing.Union, types.UnionType):
-        return typing.get_args(kind)
-    return None
-
-
-def _is_settings(kind: Any) -> bool:
-    return isinstance(kind, type) and dataclasses.is_dataclass(kind)
 
 
 def _config_type(kind: Any) -> Any:
@@ -91,20 +83,6 @@ def _config_type(kind: Any) -> Any:
         k, v = typing.get_args(kind)
         return dict[k, _config_type(v)]
     return kind
-
-
-def plain(value: Any) -> Any:
-    """A settings value as the YAML would hold it (paths as strings, tuples as lists, settings
-    objects as dicts keyed like their YAML)."""
-    if isinstance(value, Path):
-        return str(value)
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {key_of(f): plain(getattr(value, f.name)) for f in fields_of(type(value))}
-    if isinstance(value, tuple | list):
-        return [plain(v) for v in value]
-    if isinstance(value, dict):
-        return {k: plain(v) for k, v in value.items()}
-    return value
 
 
 def _default_of(f: dataclasses.Field) -> Any:
@@ -214,66 +192,6 @@ class Entry:
         return build(self.settings, cfg, dict(self.extra))
 
 
-def _coerce(kind: Any, value: Any, key: str) -> Any:
-    """A YAML value as the field's type wants it: str -> Path, list -> tuple, dict -> settings."""
-    if value is None:
-        return None
-    args = _union_args(kind)
-    if args is not None:
-        rest = [a for a in args if a is not type(None)]
-        return _coerce(rest[0], value, key) if len(rest) == 1 else _tupled(value)
-    if kind is Path:
-        return Path(value)
-    if _is_settings(kind):
-        return _construct(kind, value, f"{key}.")
-    origin = typing.get_origin(kind)
-    if origin is tuple:
-        items = [a for a in typing.get_args(kind) if a is not Ellipsis]
-        return tuple(_coerce(items[0] if items else Any, v, key) for v in value)
-    if origin is dict:
-        inner = typing.get_args(kind)[1]
-        return {k: _coerce(inner, v, f"{key}.{k}") for k, v in value.items()}
-    return value
-
-
-def _tupled(value: Any) -> Any:
-    return tuple(_tupled(v) for v in value) if isinstance(value, list) else value
-
-
-def _prefixed(err: ValueError, settings: type, prefix: str) -> ConfigError:
-    """The error of a nested settings object, its key given the path of the group it is in."""
-    message = str(err)
-    if prefix and any(
-        message.startswith(f"{key_of(f)}=") or message.startswith(f"{key_of(f)}:")
-        for f in fields_of(settings)
-    ):
-        message = prefix + message
-    return ConfigError(message)
-
-
-def _construct(settings: type, values: Mapping[str, Any], prefix: str = "") -> Any:
-    hints = typing.get_type_hints(settings)
-    kwargs = {}
-    for f in fields_of(settings):
-        key = key_of(f)
-        value = values[key]
-        if "convert" in f.metadata:
-            try:
-                value = f.metadata["convert"](value)
-            except ValueError as err:
-                message = str(err)
-                named = message.startswith((f"{key}=", f"{key}:", f"{prefix}{key}"))
-                raise ConfigError(message if named else f"{prefix}{key}: {message}") from None
-        else:
-            value = _coerce(hints[f.name], value, prefix + key)
-        check(f, value, prefix)
-        kwargs[f.name] = value
-    try:
-        return settings(**kwargs)
-    except ValueError as err:
-        raise _prefixed(err, settings, prefix) from None
-
-
 def build(settings: type, cfg: Any, extra: Mapping[str, type] | None = None) -> Any:
     """The settings object of a composed config (or a plain dict), every key checked.
 
@@ -287,7 +205,7 @@ def build(settings: type, cfg: Any, extra: Mapping[str, type] | None = None) -> 
             another (the message names the key path).
     """
     values = validated(schema(settings, tuple((extra or {}).items())), cfg)
-    return _construct(settings, values)
+    return construct(settings, values)
 
 
 def as_config(obj: Any) -> dict:

@@ -4,7 +4,7 @@ Settings: ``conf/plan.yaml`` (declared by :class:`nbv.plan.config.PlanSettings`)
 plays a whole episode on ray-cast captures (coverage by view against the mesh;
 ``save_captures=K`` also writes the first K views as a capture folder); from a capture folder it
 plans the next view, or a one-shot planner's whole remaining plan (a
-:class:`nbv.plan.planner.Planner` on the folder's views, one decision). Writes plan.json,
+:class:`nbv.scan.planner.Planner` on the folder's views, one decision). Writes plan.json,
 cloud.ply, reconstruction.ply (the depth views fused), plan.png and plan.html into the run
 folder (:mod:`nbv.plan.output`). A refused setting or bad
 input ends with one line on stderr naming the key or file, exit status 2, and no run folder left
@@ -28,16 +28,15 @@ log = logging.getLogger("nbv.plan")
 
 def start(cfg) -> tuple:
     """The settings, the input read and the plan made: nothing is written yet."""
-    from nbv.plan.mesh import plan_mesh
-    from nbv.plan.planner import Planner
-    from nbv.plan.reconstruction import reconstruct_episode
+    from nbv.plan.mesh import plan_mesh, reconstruct_episode
+    from nbv.scan.planner import Planner
 
     settings = ENTRY.build(cfg)
     if settings.mesh is not None:
         result, depth = plan_mesh(settings)
         result.reconstruction = reconstruct_episode(settings, result, depth)
     else:
-        planner = Planner.load(settings.captures, settings)
+        planner = Planner.load(settings.captures, settings, views=settings.views)
         result, depth = planner.decide(), None
         result.reconstruction = planner.reconstruct()
         if result.reconstruction is None:

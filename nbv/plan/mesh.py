@@ -4,8 +4,9 @@ The mesh is placed as the dataset normalises it (bounding-box centre, farthest v
 ``object`` settings), every viewspace view is ray cast (:func:`nbv.render.raycast.render_raycast`)
 and turned into the dataset's view record (:func:`nbv.dataset.views.view_data`), and
 :func:`nbv.policies.episode.run_episode` plays the episode from ``start_view``; coverage by view
-is measured against ``n_gt`` points sampled on the mesh. :func:`save_episode_captures` writes the
-first views as a capture folder (:mod:`nbv.plan.captures`), in the mesh's units, declaring
+is measured against ``n_gt`` points sampled on the mesh, and the fused views against the mesh
+(:func:`reconstruct_episode`). :func:`save_episode_captures` writes the
+first views as a capture folder (:mod:`nbv.scan.captures`), in the mesh's units, declaring
 ``no_return: free`` (a rendered background is empty space).
 """
 
@@ -20,15 +21,17 @@ from nbv.assets.meshes import Mesh, MeshError, load_mesh, normalise, sample_surf
 from nbv.dataset.records import ModelData
 from nbv.dataset.views import view_data
 from nbv.geometry.hull import QhullFailure, hull_volume
-from nbv.plan.captures import write_captures
+from nbv.geometry.reconstruction import mesh_scores
 from nbv.plan.config import PlanSettings
-from nbv.plan.frame import candidate_poses, object_frame
-from nbv.plan.method import GainRecorder, method_context, policy_rng
-from nbv.plan.result import VIEWSPACE, PlanResult
 from nbv.policies.episode import run_episode, stage_seconds
 from nbv.policies.registry import METHODS
 from nbv.render.job import RenderError
 from nbv.render.raycast import render_raycast
+from nbv.scan.captures import write_captures
+from nbv.scan.frame import candidate_poses, object_frame
+from nbv.scan.method import GainRecorder, method_context, policy_rng
+from nbv.scan.reconstruction import fuse_views
+from nbv.scan.result import VIEWSPACE, PlanResult, Reconstruction
 from nbv.utils.seeding import named_rng
 
 log = logging.getLogger(__name__)
@@ -99,3 +102,28 @@ def save_episode_captures(settings: PlanSettings, result: PlanResult, depth: np.
     write_captures(folder, depth[views] / result.frame.scale, poses, settings.camera,
                    result.frame.center, result.frame.radius, no_return="free")  # fmt: skip
     return folder
+
+
+#: Points sampled on each surface for the mesh-input scores (adds about 0.5 sqrt(area / n) to
+#: each mean distance: 0.003 at most for the object's sphere of radius 0.5).
+SCORE_SAMPLES = 100_000
+
+
+def reconstruct_episode(
+    settings: PlanSettings, result: PlanResult, depth: np.ndarray
+) -> Reconstruction:
+    """Mesh input: fuse the episode's views (``plan_mesh``'s normalised depth, turned back into
+    world units as ``save_episode_captures`` does) and score the mesh against the input mesh."""
+    frame = result.frame
+    views = result.visited + result.chosen
+    poses = frame.poses_to_world(result.model.views[VIEWSPACE].poses[views])
+    out = fuse_views(settings, frame, list(depth[views] / frame.scale), poses,
+                     [settings.camera] * len(views), views)  # fmt: skip
+    if len(out.triangles):
+        mesh = load_mesh(settings.mesh)  # the world frame and units
+        out.scores = mesh_scores(
+            out.vertices, out.triangles, mesh.vertices, mesh.faces,
+            eps=settings.eps / frame.scale,  # eps is in normalised units
+            rng=named_rng(settings.seed, "plan", "reconstruction"), n=SCORE_SAMPLES,
+        )  # fmt: skip
+    return out

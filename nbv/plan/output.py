@@ -33,8 +33,8 @@ import numpy as np
 from nbv.geometry.camera import opencv_to_blender
 from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.plan.config import PlanSettings
-from nbv.plan.result import VIEWSPACE, PlanResult
 from nbv.policies.episode import auc
+from nbv.scan.result import VIEWSPACE, PlanResult
 from nbv.utils.atomic import fsync_replace, write_text
 
 log = logging.getLogger(__name__)

@@ -11,7 +11,7 @@ A camera position (world units) is dropped, and counted by the first reason that
 * ``box``: outside the box ``box_min`` .. ``box_max`` of allowed camera positions.
 
 The support is the declared ``support`` plane, else the one the object estimate found
-(:mod:`nbv.plan.object_estimate`); the elevation and support limits need one of them.
+(:mod:`nbv.scan.object_estimate`); the elevation and support limits need one of them.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from nbv.plan.object_estimate import Plane
+from nbv.scan.object_estimate import Plane
 from nbv.utils.fields import ConfigError, at_least, between, check_ranges, setting
 
 #: The reasons a candidate is dropped, in the order they are tried.

@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics
-from nbv.plan.config import PlanSettings
 from nbv.policies.episode import EpisodeState, Policy
 from nbv.policies.registry import METHODS, MethodContext, networks_of
+from nbv.scan.settings import ScanSettings
 from nbv.utils.seeding import named_rng
 
 if TYPE_CHECKING:
@@ -30,7 +30,7 @@ def policy_rng(seed: int, method: str) -> np.random.Generator:
     return named_rng(seed, "plan", method)
 
 
-def method_context(settings: PlanSettings, camera: Intrinsics, n_views: int) -> MethodContext:
+def method_context(settings: ScanSettings, camera: Intrinsics, n_views: int) -> MethodContext:
     """The registry's context of the plan's method (the network it runs loaded, its own or, for
     a planner led by a network, the leading one's).
 
@@ -53,7 +53,7 @@ def method_context(settings: PlanSettings, camera: Intrinsics, n_views: int) -> 
 
 
 def load_network(
-    settings: PlanSettings, n_views: int, name: str
+    settings: ScanSettings, n_views: int, name: str
 ) -> NetworkPolicy | ConditionedPolicy:
     """The network policy of the network method ``name`` the plan runs: ``checkpoint``, else
     the weights the package ships (:meth:`nbv.policies.registry.Method.weights`).

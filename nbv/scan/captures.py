@@ -313,7 +313,7 @@ def depth_capture(
     max_range: float | None = None,
 ) -> Capture:
     """A depth image view as the planner reads it (a file's, or one given to
-    :class:`nbv.plan.planner.Planner`).
+    :class:`nbv.scan.planner.Planner`).
 
     Args:
         depth: (H, W) float64 planar depth, world units; 0, NaN or inf where nothing was

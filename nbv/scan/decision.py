@@ -1,6 +1,6 @@
 """The warm part of a plan from captures: the object placed, the candidates limited and the
 policy built once, then views added one at a time and decisions made on them
-(:class:`Decider`; :class:`nbv.plan.planner.Planner` and ``python -m nbv.plan captures=...`` both
+(:class:`Decider`; :class:`nbv.scan.planner.Planner` and ``python -m nbv.plan captures=...`` both
 run on it).
 
 Each view is matched to the candidate it was taken from as it comes (the nearest free one
@@ -23,12 +23,14 @@ import numpy as np
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.clouds import random_subset
 from nbv.infogain.occupancy import Misses
-from nbv.plan.captures import Capture, CaptureError, check_views_see
-from nbv.plan.config import PlanSettings
-from nbv.plan.frame import ObjectFrame
-from nbv.plan.method import method_context, policy_rng, predicted_gains
-from nbv.plan.object_estimate import Plane
-from nbv.plan.placement import (
+from nbv.policies.episode import captured_state, stage_seconds
+from nbv.policies.registry import METHODS, NETWORK_INPUTS
+from nbv.policies.volumetric import InformationGainPolicy, SensedViews
+from nbv.scan.captures import Capture, CaptureError, check_views_see
+from nbv.scan.frame import ObjectFrame
+from nbv.scan.method import method_context, policy_rng, predicted_gains
+from nbv.scan.object_estimate import Plane
+from nbv.scan.placement import (
     limited_candidates,
     match_views,
     place_object,
@@ -36,10 +38,8 @@ from nbv.plan.placement import (
     sensed_misses,
     support_of,
 )
-from nbv.plan.result import VIEWSPACE, PlanResult
-from nbv.policies.episode import captured_state, stage_seconds
-from nbv.policies.registry import METHODS, NETWORK_INPUTS
-from nbv.policies.volumetric import InformationGainPolicy, SensedViews
+from nbv.scan.result import VIEWSPACE, PlanResult
+from nbv.scan.settings import ScanSettings
 from nbv.utils.seeding import named_rng
 
 log = logging.getLogger(__name__)
@@ -59,6 +59,7 @@ class Decider:
         given: ``views.json``'s object, or None.
         restored: a saved planner's placement (:meth:`placement`), or None: placed from the
             settings and the views.
+        where: what the views are called in messages (their folder).
 
     Raises:
         CaptureError: the object cannot be placed, a view does not look at it, the candidate
@@ -67,12 +68,14 @@ class Decider:
 
     def __init__(
         self,
-        settings: PlanSettings,
+        settings: ScanSettings,
         captures: list[Capture],
         given: dict | None,
         restored: dict | None = None,
+        where: str = "the views",
     ) -> None:
         self.settings = settings
+        self.where = where
         if restored is not None:
             obj = restored["frame"]
             self.frame = ObjectFrame(np.asarray(obj["center"], np.float64), float(obj["radius"]),
@@ -86,19 +89,21 @@ class Decider:
                 int(record["points"]))  # fmt: skip
             check_views_see(captures, self.frame.center, self.frame.radius, settings.camera)
         else:
-            self.frame, self.source, found = place_object(settings, captures, given)
+            self.frame, self.source, found = place_object(settings, captures, given, where)
             self.estimate = None if found is None else found.record()
             self.estimate_warnings = [] if found is None else list(found.warnings)
             support = support_of(settings, captures, self.frame, found)
         self.support = support
-        candidates, self.kept, self.limits = limited_candidates(settings, self.frame, support)
+        candidates, self.kept, self.limits = limited_candidates(
+            settings, self.frame, support, where
+        )
         if (
             self.limits is not None
             and self.limits["dropped"]
             and not _reads_any_candidates(settings.method)
         ):
             raise CaptureError(
-                f"{settings.captures}: the candidate limits drop {self.limits['dropped']} views, "
+                f"{where}: the candidate limits drop {self.limits['dropped']} views, "
                 f"and {settings.method} scores only the views of its whole viewspace; use a "
                 "method that reads any candidates, or no candidates.* limits"
             )
@@ -185,7 +190,7 @@ class Decider:
         # A sensor's views: what a missing pixel means is the captures' declaration, not the
         # dataset's "background is free" (points subsampled create no misses either).
         state.model.views[VIEWSPACE] = SensedViews.of(state.model.views[VIEWSPACE], self.misses)
-        state.model.source_path = str(settings.captures or "")
+        state.model.source_path = self.where
         if isinstance(policy, InformationGainPolicy) and self._traced_poses is not None:
             policy.retrace_candidates(self.poses, self._traced_poses)
         t0 = time.perf_counter()
@@ -226,7 +231,7 @@ class Decider:
         return notes
 
     def placement(self) -> dict:
-        """What :class:`nbv.plan.planner.Planner` saves to be placed again the same way."""
+        """What :class:`nbv.scan.planner.Planner` saves to be placed again the same way."""
         return {
             "frame": {"center": self.frame.center.tolist(), "radius": self.frame.radius,
                       "up": self.frame.up},

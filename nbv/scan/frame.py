@@ -23,7 +23,7 @@ from nbv.geometry.camera import viewspace_poses
 from nbv.geometry.viewspace_generators import up_rotation
 
 if TYPE_CHECKING:
-    from nbv.plan.config import PlanSettings
+    from nbv.scan.settings import ScanSettings
 
 
 @dataclass(frozen=True)
@@ -110,7 +110,7 @@ def candidate_poses(
     return viewspace_poses(normalised * reach)
 
 
-def object_frame(settings: PlanSettings, center: np.ndarray, radius: float) -> ObjectFrame:
+def object_frame(settings: ScanSettings, center: np.ndarray, radius: float) -> ObjectFrame:
     """The object's frame: the ``object`` settings' centre and radius where given, else the
     region of interest's (``object.box_min`` / ``box_max``: its centre and half its diagonal),
     else the input's ``center`` (3,) and ``radius`` (world units: the mesh's, the captures' or

@@ -1,7 +1,7 @@
 """What a plan found (:class:`PlanResult`), whatever its input.
 
 Both inputs become what the evaluator's policies read, a :class:`nbv.dataset.records.ModelData`
-of one viewspace (:data:`VIEWSPACE`), in the planners' normalised frame (:mod:`nbv.plan.frame`):
+of one viewspace (:data:`VIEWSPACE`), in the planners' normalised frame (:mod:`nbv.scan.frame`):
 the object's centre at the origin, its radius 0.5, the rig's up axis +y.
 """
 
@@ -13,7 +13,7 @@ import numpy as np
 
 from nbv.dataset.records import ModelData
 from nbv.geometry.camera import Intrinsics
-from nbv.plan.frame import ObjectFrame
+from nbv.scan.frame import ObjectFrame
 
 #: The viewspace's name in the plan's record.
 VIEWSPACE = "plan"
@@ -70,13 +70,13 @@ class PlanResult:
             settings``, ``region of interest`` (``object.box_*``), ``views.json``, or
             ``estimated``.
         estimate: captures input: the object estimate
-            (:meth:`nbv.plan.object_estimate.ObjectEstimate.record`), when one ran.
+            (:meth:`nbv.scan.object_estimate.ObjectEstimate.record`), when one ran.
         candidate_limits: captures input: the candidates dropped
-            (:func:`nbv.plan.candidates.limit_candidates`): ``dropped`` (how many),
+            (:func:`nbv.scan.candidates.limit_candidates`): ``dropped`` (how many),
             ``by_reason``, ``dropped_views`` and ``kept_views`` (viewspace indices; the plan's
             candidate ``i`` is viewspace view ``kept_views[i]``), ``support`` (the plane used, or
             None); None when nothing limits them.
-        reconstruction: the views fused into a mesh (:mod:`nbv.plan.reconstruction`), when the
+        reconstruction: the views fused into a mesh (:mod:`nbv.scan.reconstruction`), when the
             command made one.
     """
 

@@ -1,10 +1,10 @@
-"""A planner that stays warm in a robot's loop: ``from nbv.plan import Planner``.
+"""A planner that stays warm in a robot's loop: ``from nbv.scan import Planner``.
 
 ``python -m nbv.plan captures=...`` reads a folder, decides once and exits. A robot decides again
 after every view, so :class:`Planner` keeps what does not change between decisions:
 
-* the settings, checked once (:class:`~nbv.plan.config.PlanSettings`, or keyword overrides of
-  it: the command's keys);
+* the settings, checked once (:class:`~nbv.scan.settings.ScanSettings`, or keyword overrides of
+  it: the command's keys, without hydra);
 * the object's frame, placed at the first decision (the ``object`` settings, a region of
   interest, else estimated from the views added so far) and kept after it: the candidates do
   not move under the robot mid-scan, and the map is never rebuilt;
@@ -14,8 +14,8 @@ after every view, so :class:`Planner` keeps what does not change between decisio
   decision (:meth:`nbv.policies.volumetric.InformationGainPolicy.update`), and the candidates'
   rays, traced once.
 
-Each view is read as a capture file would be (:func:`nbv.plan.captures.depth_capture`,
-:func:`~nbv.plan.captures.cloud_capture`) and matched to a candidate; ``python -m nbv.plan
+Each view is read as a capture file would be (:func:`nbv.scan.captures.depth_capture`,
+:func:`~nbv.scan.captures.cloud_capture`) and matched to a candidate; ``python -m nbv.plan
 captures=...`` loads a folder with :meth:`Planner.load` and decides once, so the planner's choices
 are the command's on the same views. :meth:`Planner.save` writes a capture folder (``views.json``,
 one file a view) with ``planner.json`` beside it (the settings, the frame and the support found),
@@ -25,18 +25,18 @@ that draw nothing at random (every method but ``random``).
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import logging
 import os
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from nbv.config.settings import as_config, build
 from nbv.geometry.camera import Intrinsics, opencv_to_blender
-from nbv.plan.captures import (
+from nbv.scan.captures import (
     AXES,
     NO_RETURN,
     Capture,
@@ -49,15 +49,20 @@ from nbv.plan.captures import (
     select_views,
     write_views,
 )
-from nbv.plan.config import PlanSettings
-from nbv.plan.decision import Decider
-from nbv.plan.frame import ObjectFrame
-from nbv.plan.result import PlanResult
+from nbv.scan.decision import Decider
+from nbv.scan.frame import ObjectFrame
+from nbv.scan.result import PlanResult
+from nbv.scan.settings import ScanSettings
+from nbv.utils.settings_values import plain, replaced
 
 log = logging.getLogger(__name__)
 
 #: The planner's own file in a saved folder, beside ``views.json``.
 STATE = "planner.json"
+#: Keys of ``python -m nbv.plan``'s own settings that ``planner.json`` files saved before
+#: 2026-12-07 hold beside the scan's: its inputs and outputs, nothing a decision reads.
+_COMMAND_KEYS = ("mesh", "captures", "views", "start_view", "n_gt", "save_captures",
+                 "captures_out", "picture", "page", "out_dir")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -84,68 +89,41 @@ class NextView:
     gain_unit: str
 
 
-def planner_settings(settings: PlanSettings | None, overrides: dict) -> PlanSettings:
-    """``settings`` with keyword overrides of its fields (nested groups as dicts:
-    ``viewspace={"kind": "sphere", "n": 60}``; ``camera`` an :class:`Intrinsics`), checked as the
-    command checks its keys.
+def scan_settings(settings: ScanSettings | None, overrides: Mapping[str, Any]) -> ScanSettings:
+    """``settings`` (a :class:`ScanSettings`, or a command's settings that extend it: only the
+    scan's keys are kept) with keyword overrides of its keys, nested groups as dicts
+    (``viewspace={"kind": "sphere", "n": 60}``; ``camera`` an :class:`Intrinsics`), checked as
+    the command checks its keys.
 
     Raises:
         ConfigError: an unknown key or a bad value, named.
     """
-    camera = overrides.pop("camera", None)
-    if settings is not None and not overrides:
-        return settings if camera is None else dataclasses.replace(settings, camera=camera)
-    base = _python(as_config(settings)) if settings is not None else {"out_dir": "plan"}
-    values = _merged(base, overrides)
-    values["camera"] = {"width": 1, "height": 1, "focal": 1.0}  # replaced below
-    given = camera or (settings.camera if settings is not None else Intrinsics())
-    return dataclasses.replace(build(PlanSettings, values), camera=given)
-
-
-def _python(value):
-    """numpy scalars and arrays of a settings dict as plain Python (what a config holds)."""
-    if isinstance(value, dict):
-        return {k: _python(v) for k, v in value.items()}
-    if isinstance(value, list | tuple | np.ndarray):
-        return [_python(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
-def _merged(base: dict, overrides: dict) -> dict:
-    out = dict(base)
-    for key, value in overrides.items():
-        if isinstance(value, dict) and isinstance(out.get(key), dict):
-            out[key] = _merged(out[key], value)
-        elif dataclasses.is_dataclass(value):
-            out[key] = as_config(value)
-        else:
-            out[key] = value
-    return out
+    if settings is None:
+        settings = ScanSettings()
+    elif type(settings) is not ScanSettings:
+        settings = ScanSettings(**{f.name: getattr(settings, f.name) for f in fields(ScanSettings)})
+    return replaced(settings, overrides) if overrides else settings
 
 
 class Planner:
     """Next views from views added one by one (module docstring).
 
     Args:
-        settings: the plan's settings (``mesh`` and ``captures`` unset); None: the defaults.
+        settings: the scan's settings (:class:`~nbv.scan.settings.ScanSettings`, or the
+            command's :class:`~nbv.plan.config.PlanSettings`, whose scan keys are taken); None:
+            the defaults.
         **overrides: settings by key, over ``settings``: ``method="ig_learned"``,
             ``viewspace={"kind": "hemisphere", "n": 40, "up": "z", "radius": 0.45}``,
             ``object={"center": [0, 0, 0.1], "radius": 0.1}``, ``candidates={...}``.
 
     Raises:
-        ConfigError: a bad setting, named; ValueError: a mesh input (an episode is
-            ``python -m nbv.plan mesh=...``'s).
+        ConfigError: a bad setting, named.
     """
 
-    def __init__(self, settings: PlanSettings | None = None, /, **overrides) -> None:
-        self.settings = planner_settings(settings, dict(overrides))
-        if self.settings.mesh is not None:
-            raise ValueError(
-                "Planner: mesh= plays a whole episode (python -m nbv.plan mesh=...); a Planner "
-                "takes views by add_view, or Planner.load(folder)"
-            )
+    def __init__(self, settings: ScanSettings | None = None, /, **overrides) -> None:
+        self.settings = scan_settings(settings, overrides)
+        #: What the views are called in messages: their folder once loaded.
+        self.where = "the views"
         self.captures: list[Capture] = []
         self._decider: Decider | None = None
         self._restored: dict | None = None  # planner.json's frame and support
@@ -173,7 +151,7 @@ class Planner:
             intrinsics: the depth image's camera.
             axes: the pose's camera axes: ``opencv`` (z forward, y down) or ``blender``.
             no_return: what a pixel without a measurement means: ``unknown`` (a sensor's) or
-                ``free`` (a rendered view's background; :mod:`nbv.plan.captures`).
+                ``free`` (a rendered view's background; :mod:`nbv.scan.captures`).
             max_range: the sensor's range (planar depth, world units), or None.
 
         Raises:
@@ -226,7 +204,8 @@ class Planner:
         if not self.captures:
             raise CaptureError("Planner: no views yet; add_view first")
         if self._decider is None:
-            self._decider = Decider(self.settings, self.captures, self._given, self._restored)
+            self._decider = Decider(self.settings, self.captures, self._given, self._restored,
+                                   self.where)  # fmt: skip
         return self._decider
 
     def decide(self) -> PlanResult:
@@ -262,9 +241,9 @@ class Planner:
     # --- the reconstruction ----------------------------------------------------------------
 
     def reconstruct(self):
-        """The depth views fused into a mesh (:func:`nbv.plan.reconstruction.reconstruct_captures`;
+        """The depth views fused into a mesh (:func:`nbv.scan.reconstruction.reconstruct_captures`;
         None when every view is a point cloud)."""
-        from nbv.plan.reconstruction import reconstruct_captures
+        from nbv.scan.reconstruction import reconstruct_captures
 
         return reconstruct_captures(self.settings, self.captures, self._ready().frame)
 
@@ -273,9 +252,10 @@ class Planner:
     def save(self, folder: str | os.PathLike) -> Path:
         """Write the views as a capture folder with ``planner.json`` (replacing a folder saved
         before, whole or not at all); :meth:`load` resumes from it. Returns the folder."""
-        # The folder holds exactly the views kept: no selection, and it is its own source.
-        kept = dataclasses.replace(self.settings, views=None, captures=None)
-        state: dict = {"settings": as_config(kept), "camera": self.settings.camera.as_dict()}
+        # The camera is saved whole (all its parameters), beside the other keys.
+        values = plain(self.settings)
+        values.pop("camera")
+        state: dict = {"settings": values, "camera": self.settings.camera.as_dict()}
         if self._decider is not None:
             state |= self._decider.placement()
         elif self._restored is not None:
@@ -286,11 +266,24 @@ class Planner:
         return folder
 
     @classmethod
-    def load(cls, folder: str | os.PathLike, settings: PlanSettings | None = None,
-             **overrides) -> Planner:  # fmt: skip
+    def load(
+        cls,
+        folder: str | os.PathLike,
+        settings: ScanSettings | None = None,
+        views: Sequence[int] | None = None,
+        **overrides,
+    ) -> Planner:
         """A planner on the views of a capture folder: one :meth:`save` wrote (its settings,
         frame and support restored; ``overrides`` apply over them), or any other (``settings``
         and ``overrides``, as ``python -m nbv.plan captures=folder``).
+
+        Args:
+            folder: the capture folder (``views.json`` and one file a view).
+            settings: the scan's settings; None: ``planner.json``'s when the folder has one,
+                else the defaults.
+            views: the folder's views to plan from, by their index in ``views.json``, in that
+                order; None takes them all.
+            **overrides: settings by key, as for :class:`Planner`.
 
         Raises:
             CaptureError: the folder or ``planner.json`` cannot be used, named.
@@ -301,24 +294,25 @@ class Planner:
         if state_file.is_file() and settings is None:
             try:
                 state = json.loads(state_file.read_text())
-                values = dict(state["settings"])
+                values = {k: v for k, v in state["settings"].items() if k not in _COMMAND_KEYS}
                 camera = Intrinsics(**state["camera"])
             except (OSError, ValueError, KeyError, TypeError) as err:
                 raise CaptureError(
                     f"{state_file}: cannot read the planner's state ({err})"
                 ) from err
             values.pop("camera", None)
-            values["camera"] = {"width": 1, "height": 1, "focal": 1.0}  # replaced by camera
-            planner = cls(build(PlanSettings, values), camera=camera, **overrides)
+            try:
+                saved = replaced(ScanSettings(), values)
+            except ValueError as err:
+                raise CaptureError(f"{state_file}: settings: {err}") from None
+            planner = cls(saved, camera=camera, **overrides)
             restored = {k: state[k] for k in ("frame", "support", "source") if k in state}
         else:
             planner = cls(settings, **overrides)
-        if planner.settings.captures is None:
-            planner.settings = dataclasses.replace(planner.settings, captures=folder)
+        planner.where = str(folder)
         captures, given = read_captures(folder)
-        selected = planner.settings.views
-        if selected is not None:
-            captures = select_views(captures, selected, folder)
+        if views is not None:
+            captures = select_views(captures, views, folder)
         planner.captures = captures
         planner._given = given
         planner._restored = restored or None

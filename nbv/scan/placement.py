@@ -1,8 +1,8 @@
 """The steps of a plan from captures before the policy, each a function a stateful caller
-(:class:`nbv.plan.decision.Decider`) calls on its own: the object placed (:func:`place_object`:
+(:class:`nbv.scan.decision.Decider`) calls on its own: the object placed (:func:`place_object`:
 the ``object`` settings, a region of interest, ``views.json``'s, else estimated among its
-surroundings by :mod:`nbv.plan.object_estimate`); the candidates a robot cannot reach dropped
-(:func:`limited_candidates`, :mod:`nbv.plan.candidates`); each capture matched to the candidate it
+surroundings by :mod:`nbv.scan.object_estimate`); the candidates a robot cannot reach dropped
+(:func:`limited_candidates`, :mod:`nbv.scan.candidates`); each capture matched to the candidate it
 was taken from (:func:`match_views`, within ``match_degrees`` seen from the object's centre) or an
 extra visited view; what each view's missing pixels mean in the planners' units
 (:func:`sensed_misses`); the planner's camera (:func:`planner_camera`).
@@ -19,17 +19,17 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.geometry.viewspace_generators import up_rotation
 from nbv.infogain.occupancy import Misses
-from nbv.plan.candidates import declared_plane, limit_candidates
-from nbv.plan.captures import Capture, CaptureError, check_views_see
-from nbv.plan.config import PlanSettings
-from nbv.plan.frame import ObjectFrame, candidate_poses, object_frame
-from nbv.plan.object_estimate import (
+from nbv.scan.candidates import declared_plane, limit_candidates
+from nbv.scan.captures import Capture, CaptureError, check_views_see
+from nbv.scan.frame import ObjectFrame, candidate_poses, object_frame
+from nbv.scan.object_estimate import (
     ObjectEstimate,
     Plane,
     estimate_object,
     find_planes,
     thinned,
 )
+from nbv.scan.settings import ScanSettings
 
 log = logging.getLogger(__name__)
 
@@ -67,11 +67,11 @@ def up_vector(up: str) -> np.ndarray:
 
 
 def place_object(
-    settings: PlanSettings, captures: list[Capture], given: dict | None
+    settings: ScanSettings, captures: list[Capture], given: dict | None, where: str
 ) -> tuple[ObjectFrame, str, ObjectEstimate | None]:
     """The object's frame: the ``object`` settings (a sphere, or a region of interest), else the
     folder's ``object``, else estimated (:func:`estimate_object`); every view checked to look at
-    it.
+    it. ``where`` names the views in messages.
 
     Returns:
         ``(frame, source, estimate)`` (``source`` as :attr:`PlanResult.object_source`; the
@@ -97,7 +97,7 @@ def place_object(
                 up_vector(settings.viewspace.up), obj.estimate, settings.seed,
             )  # fmt: skip
         except ValueError as err:
-            raise CaptureError(f"{settings.captures}: {err}") from None
+            raise CaptureError(f"{where}: {err}") from None
         center, radius = estimate.center, estimate.radius
         log.info("object estimated from the captures: centre %s, radius %.4g (%d of %d points; "
                  "%d planes removed, support %s)", np.round(center, 4).tolist(), radius,
@@ -111,7 +111,7 @@ def place_object(
 
 
 def support_of(
-    settings: PlanSettings,
+    settings: ScanSettings,
     captures: list[Capture],
     frame: ObjectFrame,
     estimate: ObjectEstimate | None,
@@ -140,9 +140,9 @@ def support_of(
 
 
 def limited_candidates(
-    settings: PlanSettings, frame: ObjectFrame, support: Plane | None
+    settings: ScanSettings, frame: ObjectFrame, support: Plane | None, where: str
 ) -> tuple[np.ndarray, np.ndarray, dict | None]:
-    """The candidates a robot can use, normalised poses.
+    """The candidates a robot can use, normalised poses (``where`` names the views in messages).
 
     Returns:
         ``(poses, kept, record)``: (K, 4, 4) the kept candidates' poses, (K,) their viewspace
@@ -155,7 +155,7 @@ def limited_candidates(
     try:
         keep, by_reason = limit_candidates(world, frame.center, settings.candidates, support)
     except ValueError as err:
-        raise CaptureError(f"{settings.captures}: {err}") from None
+        raise CaptureError(f"{where}: {err}") from None
     kept = np.flatnonzero(keep)
     record = {
         "dropped": int(len(candidates) - len(kept)),
@@ -169,8 +169,7 @@ def limited_candidates(
              or "none")  # fmt: skip
     if len(kept) == 0:
         raise CaptureError(
-            f"{settings.captures}: the candidate limits (candidates.*) drop all "
-            f"{len(candidates)} candidates"
+            f"{where}: the candidate limits (candidates.*) drop all {len(candidates)} candidates"
         )
     return candidates[kept], kept, record
 
