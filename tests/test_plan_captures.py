@@ -20,7 +20,8 @@ from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.config import PlanSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.registry import METHODS, MethodContext
-from nbv.scan.captures import CaptureError, check_rigid, read_captures, write_captures
+from nbv.scan.capture import CaptureError, check_rigid
+from nbv.scan.captures import read_captures, write_captures
 from nbv.scan.method import policy_rng
 from nbv.scan.object_estimate import EstimateSettings, estimate_object
 from nbv.scan.settings import ObjectSettings, ViewspaceSettings

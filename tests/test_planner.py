@@ -30,7 +30,7 @@ from nbv.geometry.camera import Intrinsics, opencv_to_blender
 from nbv.plan.config import PlanSettings
 from nbv.render.scene import SceneSettings, table_scene
 from nbv.scan import NextView, Planner
-from nbv.scan.captures import CaptureError
+from nbv.scan.capture import CaptureError
 from nbv.scan.settings import ObjectSettings, ScanSettings, ViewspaceSettings
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -5,8 +5,9 @@ object's frame, the candidates and the policy warm between decisions. Below it:
 
 * :mod:`~nbv.scan.settings`: :class:`~nbv.scan.settings.ScanSettings`, plain frozen dataclasses
   (no hydra);
-* :mod:`~nbv.scan.captures`: a captured view (:class:`~nbv.scan.captures.Capture`), the capture
-  folder's format, its reader and writer;
+* :mod:`~nbv.scan.capture`: a captured view (:class:`~nbv.scan.capture.Capture`) from a depth
+  image or a cloud; :mod:`~nbv.scan.captures`: the capture folder's format, its reader and
+  writer;
 * :mod:`~nbv.scan.object_estimate`, :mod:`~nbv.scan.frame`, :mod:`~nbv.scan.candidates`,
   :mod:`~nbv.scan.placement`: the object found or declared, its frame, the candidate poses and
   the limits of where the camera may go;

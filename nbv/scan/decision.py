@@ -26,7 +26,7 @@ from nbv.infogain.occupancy import Misses
 from nbv.policies.episode import captured_state, stage_seconds
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.policies.volumetric import InformationGainPolicy, SensedViews
-from nbv.scan.captures import Capture, CaptureError, check_views_see
+from nbv.scan.capture import Capture, CaptureError, check_views_see
 from nbv.scan.frame import ObjectFrame
 from nbv.scan.method import method_context, policy_rng, predicted_gains
 from nbv.scan.object_estimate import Plane

@@ -20,7 +20,7 @@ from nbv.geometry.viewspace import angular_distances
 from nbv.geometry.viewspace_generators import up_rotation
 from nbv.infogain.occupancy import Misses
 from nbv.scan.candidates import declared_plane, limit_candidates
-from nbv.scan.captures import Capture, CaptureError, check_views_see
+from nbv.scan.capture import Capture, CaptureError, check_views_see
 from nbv.scan.frame import ObjectFrame, candidate_poses, object_frame
 from nbv.scan.object_estimate import (
     ObjectEstimate,

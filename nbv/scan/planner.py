@@ -14,8 +14,8 @@ after every view, so :class:`Planner` keeps what does not change between decisio
   decision (:meth:`nbv.policies.volumetric.InformationGainPolicy.update`), and the candidates'
   rays, traced once.
 
-Each view is read as a capture file would be (:func:`nbv.scan.captures.depth_capture`,
-:func:`~nbv.scan.captures.cloud_capture`) and matched to a candidate; ``python -m nbv.plan
+Each view is read as a capture file would be (:func:`nbv.scan.capture.depth_capture`,
+:func:`~nbv.scan.capture.cloud_capture`) and matched to a candidate; ``python -m nbv.plan
 captures=...`` loads a folder with :meth:`Planner.load` and decides once, so the planner's choices
 are the command's on the same views. :meth:`Planner.save` writes a capture folder (``views.json``,
 one file a view) with ``planner.json`` beside it (the settings, the frame and the support found),
@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from nbv.geometry.camera import Intrinsics, opencv_to_blender
-from nbv.scan.captures import (
+from nbv.scan.capture import (
     AXES,
     NO_RETURN,
     Capture,
@@ -45,10 +45,8 @@ from nbv.scan.captures import (
     check_views_see,
     cloud_capture,
     depth_capture,
-    read_captures,
-    select_views,
-    write_views,
 )
+from nbv.scan.captures import read_captures, select_views, write_views
 from nbv.scan.decision import Decider
 from nbv.scan.frame import ObjectFrame
 from nbv.scan.result import PlanResult

@@ -9,7 +9,7 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.fusion import fuse_depth
-from nbv.scan.captures import Capture
+from nbv.scan.capture import Capture
 from nbv.scan.frame import ObjectFrame
 from nbv.scan.result import Reconstruction
 from nbv.scan.settings import ScanSettings
