@@ -203,7 +203,7 @@ def unusable(settings: EvalSettings, networks: dict, sizes: dict[str, int]) -> d
     return out
 
 
-def method_context(
+def dataset_context(
     settings: EvalSettings, ds: Dataset, networks: dict[str, NetworkPolicy], scorer=None
 ) -> MethodContext:
     """What the methods of ``settings`` need on the dataset ``ds``: its camera and eps, the
@@ -492,7 +492,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     total = sum(len(info.keys) for info, _ in opened) * len(jobs)
     tasks, done_before = [], {}
     for info, ds in opened:
-        ctx = method_context(settings, ds, networks, scorer)
+        ctx = dataset_context(settings, ds, networks, scorer)
         for key in info.keys:
             done = episodes.done.get((info.name, key))
             if done is None:

@@ -41,9 +41,9 @@ from nbv.config.settings import Entry, setting
 from nbv.dataset.records import ModelData, score_functions
 from nbv.eval.config import DisturbSettings, EvalSettings, names_setting
 from nbv.eval.evaluate import (
+    dataset_context,
     exclude_selection,
     load_networks,
-    method_context,
     open_datasets,
     unusable,
     with_shipped_weights,
@@ -165,7 +165,7 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
     records = []
     for info, ds in opened:
         exclude_selection(info, ds, networks)
-        ctx = method_context(settings, ds, networks, scorer)
+        ctx = dataset_context(settings, ds, networks, scorer)
         for key in tqdm(info.keys, desc=f"ranking {info.name}", disable=not settings.progress):
             model = read_model(ds, info.rendered, key, settings.viewspaces)
             for vs in settings.viewspaces:

@@ -29,7 +29,7 @@ from nbv.render.job import RenderError
 from nbv.render.raycast import render_raycast
 from nbv.scan.captures import write_captures
 from nbv.scan.frame import candidate_poses, object_frame
-from nbv.scan.method import GainRecorder, method_context, policy_rng
+from nbv.scan.method import GainRecorder, policy_rng, scan_context
 from nbv.scan.reconstruction import fuse_views
 from nbv.scan.result import VIEWSPACE, PlanResult, Reconstruction
 from nbv.utils.seeding import named_rng
@@ -72,7 +72,7 @@ def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
         source_path=str(settings.mesh), center=frame.center, scale=frame.scale,
         seed=settings.seed, gt_points=gt, gt_hull_volume=gt_volume, views={VIEWSPACE: view},
     )  # fmt: skip
-    ctx = method_context(settings, settings.camera, len(poses))
+    ctx = scan_context(settings, settings.camera, len(poses))
     policy = METHODS[settings.method].build(ctx, policy_rng(settings.seed, settings.method))
     recorder = GainRecorder(policy)
     episode = run_episode(model, VIEWSPACE, settings.start_view, recorder, settings.n_views)

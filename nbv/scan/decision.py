@@ -28,7 +28,7 @@ from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.policies.volumetric import InformationGainPolicy, SensedViews
 from nbv.scan.capture import Capture, CaptureError, check_views_see
 from nbv.scan.frame import ObjectFrame
-from nbv.scan.method import method_context, policy_rng, predicted_gains
+from nbv.scan.method import policy_rng, predicted_gains, scan_context
 from nbv.scan.object_estimate import Plane
 from nbv.scan.placement import (
     limited_candidates,
@@ -162,7 +162,7 @@ class Decider:
                 log.info("planner camera changed to %s: the policy is built again", camera)
             self.camera = camera
             log.info("planner camera: %s", camera)
-            ctx = method_context(self.settings, camera, self.n)
+            ctx = scan_context(self.settings, camera, self.n)
             self.policy = METHODS[self.settings.method].build(
                 ctx, policy_rng(self.settings.seed, self.settings.method)
             )

@@ -1,7 +1,7 @@
 """The plan's method: the registry's policy built for a plan, and what the policy reports.
 
 The policy is the registry's (:data:`nbv.policies.registry.METHODS`), built from
-:func:`method_context` with the generator :func:`policy_rng` gives, so that a plan from captures
+:func:`scan_context` with the generator :func:`policy_rng` gives, so that a plan from captures
 is the evaluator's decision on the same views. After each decision the plan reads the policy's
 own predicted gains (:func:`predicted_gains`, :class:`GainRecorder`) and stage timings
 (:func:`nbv.policies.episode.stage_seconds`).
@@ -30,7 +30,7 @@ def policy_rng(seed: int, method: str) -> np.random.Generator:
     return named_rng(seed, "plan", method)
 
 
-def method_context(settings: ScanSettings, camera: Intrinsics, n_views: int) -> MethodContext:
+def scan_context(settings: ScanSettings, camera: Intrinsics, n_views: int) -> MethodContext:
     """The registry's context of the plan's method (the network it runs loaded, its own or, for
     a planner led by a network, the leading one's).
 
