@@ -263,7 +263,7 @@ def test_held_out_categories_choose_the_checkpoint_and_are_never_trained_on(data
 def test_a_real_training_run_with_map_features(dataset, tmp_path):
     from nbv.eval.config import EvalSettings
     from nbv.eval.curve import _learner
-    from nbv.eval.evaluate import load_networks
+    from nbv.eval.inputs import load_networks
     from nbv.policies.registry import METHODS, MethodContext
 
     settings = ConditionedSettings(
@@ -294,7 +294,7 @@ def test_a_real_training_run_with_map_features(dataset, tmp_path):
 def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset):
     from nbv.assets.weights import is_shipped, shipped_weights
     from nbv.eval.config import EvalSettings
-    from nbv.eval.evaluate import with_shipped_weights
+    from nbv.eval.inputs import with_shipped_weights
 
     # The developer tool that ships weights.
     tool = Path(__file__).resolve().parents[1] / "scripts" / "ship_weights.py"

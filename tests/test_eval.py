@@ -26,7 +26,8 @@ from nbv.eval.config import (
     PrepareSettings,
 )
 from nbv.eval.disturb import auc_changes, disturbed, permuted_state, random_ball
-from nbv.eval.evaluate import EvalDataError, evaluate, run
+from nbv.eval.evaluate import evaluate, run
+from nbv.eval.inputs import EvalDataError
 from nbv.eval.metric_tables import (
     episode_values,
     metrics_tables,

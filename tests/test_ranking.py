@@ -84,7 +84,7 @@ def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
     model = ds.model(ds.keys()[1])
     settings = EvalSettings(run="unused", progress=False, methods=RANKED,
                             checkpoints={n: str(tiny[n]) for n in NETWORK_INPUTS})  # fmt: skip
-    from nbv.eval.evaluate import load_networks
+    from nbv.eval.inputs import load_networks
 
     networks, skipped = load_networks(settings, 33)
     assert not skipped

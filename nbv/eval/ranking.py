@@ -40,7 +40,7 @@ from nbv.config.schema import PathsConfig
 from nbv.config.settings import Entry, setting
 from nbv.dataset.records import ModelData, score_functions
 from nbv.eval.config import DisturbSettings, EvalSettings, names_setting
-from nbv.eval.evaluate import (
+from nbv.eval.inputs import (
     dataset_context,
     exclude_selection,
     load_networks,

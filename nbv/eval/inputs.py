@@ -1,0 +1,250 @@
+"""What an evaluation runs on: the datasets opened (and ``mesh_dir`` prepared) and checked
+against the viewspaces and start views (:func:`open_datasets`, :class:`DatasetInfo`), the models
+that chose a network's checkpoint left out (:func:`exclude_selection`), the networks loaded
+(:func:`load_networks`, :func:`with_shipped_weights`) and the methods' context on a dataset
+(:func:`dataset_context`). :mod:`nbv.eval.evaluate` runs the episodes on them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import nbv.dataset
+from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
+from nbv.assets.real_objects import default_root
+from nbv.dataset.reader import Dataset
+from nbv.eval.config import PREPARED, EvalSettings
+from nbv.eval.prepare import prepare_meshes, rendered_viewspaces, stored_name
+from nbv.policies.network import NetworkPolicy
+from nbv.policies.registry import (
+    METHODS,
+    NETWORK_INPUTS,
+    MethodContext,
+    networks_of,
+)
+
+log = logging.getLogger(__name__)
+
+
+class EvalDataError(ValueError):
+    """A dataset the evaluation cannot use; the message names the folder and the setting."""
+
+
+@dataclass
+class DatasetInfo:
+    """One evaluated dataset.
+
+    Attributes:
+        name: ``unseen``, ``test`` or ``meshes``.
+        path: its folder.
+        keys: the evaluated models.
+        failures: ``(key, reason)`` of models the dataset could not produce.
+        flat: models whose ground truth has no hull volume (their VIG is undefined: NaN).
+        qhull_failures: ``(key, message)`` of models whose ground truth Qhull failed on (VIG
+            undefined, NaN; told apart from a flat ground truth).
+        excluded: ``(key, reason)`` of models left out because their episodes chose a network
+            checkpoint (scoring them would report on the selection data).
+        sizes: viewspace -> its number of views.
+        rendered: the dataset of the viewspaces ``path`` lacks, rendered by the evaluation
+            (:func:`nbv.eval.prepare.rendered_viewspaces`); None when it lacked none.
+    """
+
+    name: str
+    path: Path
+    keys: list[str]
+    failures: list[tuple[str, str]] = field(default_factory=list)
+    flat: list[str] = field(default_factory=list)
+    qhull_failures: list[tuple[str, str]] = field(default_factory=list)
+    excluded: list[tuple[str, str]] = field(default_factory=list)
+    sizes: dict[str, int] = field(default_factory=dict)
+    rendered: Path | None = None
+
+
+def _spread(keys: list[str], categories: list[str]) -> list[str]:
+    """Keys reordered round-robin over their categories, so a ``limit`` takes every category."""
+    by_cat: dict[str, list[str]] = {}
+    for key, cat in zip(keys, categories, strict=True):
+        by_cat.setdefault(cat, []).append(key)
+    out = []
+    for i in range(max((len(v) for v in by_cat.values()), default=0)):
+        out += [v[i] for v in by_cat.values() if i < len(v)]
+    return out
+
+
+def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
+    """Open (or prepare) each selected dataset and pick its models.
+
+    A viewspace the dataset lacks is rendered for its models (once, cached:
+    :func:`nbv.eval.prepare.rendered_viewspaces`).
+
+    Raises:
+        EvalDataError: a missing or empty dataset, a viewspace it lacks and cannot render, or
+            a start view outside a viewspace.
+    """
+    out = []
+    for name in settings.datasets:
+        failures: list[tuple[str, str]] = []
+        if name in PREPARED:
+            source = PREPARED[name]
+            root = Path(settings.mesh_dir) if source == "folder" else default_root(source)
+            path, failures = prepare_meshes(root, settings.prepare, settings.progress, source)
+        else:
+            path = Path(settings.data_dir)
+        try:
+            ds = nbv.dataset.open(path, eps=settings.prepare.eps)
+        except ValueError as err:
+            raise EvalDataError(f"dataset={name} (data_dir={str(path)!r}): {err}") from None
+        if name in PREPARED:
+            keys = ds.keys()
+        else:
+            wanted = UNSEEN_CATEGORIES if name == "unseen" else TRAIN_CATEGORIES
+            keys = [k for k in ds.keys(split="test") if ds.index[k][1] in wanted]
+        if not keys:
+            which = (
+                "models"
+                if name in PREPARED
+                else (
+                    f"test-split models of the 8 {'unseen' if name == 'unseen' else 'training'} "
+                    "categories"
+                )
+            )
+            raise EvalDataError(
+                f"dataset={name}: {path} holds no {which} (categories there: {ds.categories})"
+            )
+        keys = _spread(keys, [ds.index[k][1] for k in keys])[: settings.limit]
+        sizes = {vs: len(ds.viewspaces[vs]) for vs in settings.viewspaces if vs in ds.viewspaces}
+        lacking = [vs for vs in settings.viewspaces if vs not in ds.viewspaces]
+        rendered = None
+        if lacking:
+            text = ds.attrs.get("config")
+            try:
+                rendered = rendered_viewspaces(path, json.loads(text) if text else {}, lacking,
+                                               keys, Path(settings.prepare.dir),
+                                               settings.progress)  # fmt: skip
+                extra = nbv.dataset.open(rendered, eps=settings.prepare.eps)
+            except ValueError as err:
+                raise EvalDataError(f"viewspace={','.join(lacking)}: {err}") from None
+            sizes.update({vs: len(extra.viewspaces[stored_name(vs)]) for vs in lacking})
+        for vs, n in sizes.items():
+            bad = [s for s in settings.start_views if s >= n]
+            if bad:
+                raise EvalDataError(f"start_views {bad} are outside viewspace {vs} (0..{n - 1})")
+        failures += [f for f in ds.failures if f not in failures]
+        out.append((DatasetInfo(name, path, keys, failures, sizes=sizes, rendered=rendered), ds))
+    return out
+
+
+def _whose(method: str, network: str) -> str:
+    """How a skip reason names the network of ``network`` for ``method``."""
+    return "its network" if network == method else f"the network of {network} it runs"
+
+
+def unusable(settings: EvalSettings, networks: dict, sizes: dict[str, int]) -> dict[str, str]:
+    """``<method> on <viewspace>`` -> why: the selected methods that run a network with one
+    output per view of a viewspace of another size (PCNBV's 33 outputs on ``hemisphere_30``)."""
+    out = {}
+    for method in settings.methods:
+        for name in METHODS[method].networks:
+            policy = networks.get(name)
+            if not isinstance(policy, NetworkPolicy):
+                continue  # not loaded, or viewspace-conditioned: it scores any direction
+            outputs = policy.model.config.n_views
+            for vs in settings.viewspaces:
+                if sizes[vs] != outputs:
+                    out[f"{method} on {vs}"] = (
+                        f"{_whose(method, name)} has one output per view of a {outputs}-view "
+                        f"viewspace; {vs} has {sizes[vs]} views"
+                    )
+    return out
+
+
+def dataset_context(
+    settings: EvalSettings, ds: Dataset, networks: dict[str, NetworkPolicy], scorer=None
+) -> MethodContext:
+    """What the methods of ``settings`` need on the dataset ``ds``: its camera and eps, the
+    loaded networks, the run's planner settings and ``ig_learned``'s scorer (None without it)."""
+    return MethodContext(networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]),
+                         settings.n_views, settings.ig, scorer=scorer)  # fmt: skip
+
+
+def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, NetworkPolicy]) -> None:
+    """Leave out of ``info.keys`` the models whose episodes chose a network's checkpoint, for
+    every method (the comparison stays paired), noting each in ``info.excluded``."""
+    if info.name in PREPARED:
+        return
+    keep = []
+    for key in info.keys:
+        marks = (key, f"category:{ds.index[key][1]}")
+        chose = [m for m, net in networks.items() if any(k in net.selected_on for k in marks)]
+        if chose:
+            info.excluded.append((key, f"chose the checkpoint of {', '.join(chose)}"))
+        else:
+            keep.append(key)
+    if info.excluded:
+        log.warning("dataset=%s: %d models left out: they chose a network's checkpoint",
+                    info.name, len(info.excluded))  # fmt: skip
+    info.keys = keep
+    if not keep:
+        raise EvalDataError(
+            f"dataset={info.name}: every model chose a network checkpoint; nothing to score"
+        )
+
+
+def load_networks(
+    settings: EvalSettings, n_views: int | None
+) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
+    """The checkpoints of the networks the selected methods run (:func:`networks_of`), as they
+    are (no fallback to the shipped weights: :func:`with_shipped_weights`): (network method ->
+    policy, selected method -> skip reason). A method led by another's network is skipped when
+    that network is.
+
+    ``n_views``: the viewspace's size a PCNBV network must have; None: any (see
+    :func:`unusable`)."""
+    from nbv.models.checkpoints import CheckpointError
+
+    networks, failed = {}, {}
+    for method in networks_of(settings.methods):
+        needed = NETWORK_INPUTS[method]
+        path = settings.checkpoints[method]
+        try:
+            policy = METHODS[method].load(path, n_views, settings.precision)
+        except CheckpointError as err:
+            failed[method] = str(err)
+            continue
+        if policy.input != needed:
+            failed[method] = f"checkpoint {path} holds a network on {policy.input}, not {needed}"
+            continue
+        networks[method] = policy
+    skipped = {}
+    for method in settings.methods:
+        for name in METHODS[method].networks:
+            if name in failed:
+                reason = failed[name]
+                skipped[method] = reason if name == method else f"{_whose(method, name)}: {reason}"
+    return networks, skipped
+
+
+def with_shipped_weights(settings: EvalSettings) -> EvalSettings:
+    """The settings with the checkpoint of each network the selected methods run as the
+    registry resolves it
+    (:meth:`~nbv.policies.registry.Method.weights`: the checkpoint when it exists, else the
+    weights the package ships, logged). A missing checkpoint the package ships nothing for stays:
+    :func:`load_networks` skips its method, naming the path."""
+    found = {}
+    needed = networks_of(settings.methods)
+    for method, path in settings.checkpoints.items():
+        if method not in needed:
+            continue
+        try:
+            weights = METHODS[method].weights(path)
+        except ValueError:  # no checkpoint and nothing shipped: skipped when loaded
+            continue
+        if weights != Path(path):
+            found[method] = str(weights)
+    if not found:
+        return settings
+    return dataclasses.replace(settings, checkpoints={**settings.checkpoints, **found})
