@@ -10,6 +10,44 @@ import numpy as np
 import nbv.assets.synthetic.primitives as pr
 
 
+def _airplane_tail(
+    rng: np.random.Generator, kind: int, r: float, tail_lift: float
+) -> tuple[list[pr.Part], pr.Part]:
+    """The vertical fin(s) and one half of the horizontal tail of an airplane of ``kind``
+    (fuselage radius ``r``, tail cone lifted by ``tail_lift``)."""
+    u = rng.uniform
+    # Vertical fin(s); fighters may have two, canted.
+    hf, crf = u(0.1, 0.18), u(0.12, 0.2)
+    tan_f = np.tan(np.deg2rad(u(30, 50)))
+    tip_f = crf * u(0.35, 0.6)
+    z_le_f = -0.5 + crf + 0.01
+    twin = kind == 1 and rng.random() < 0.5
+    xf, cant = (0.8 * r, 0.35) if twin else (0.0, 0.0)
+    y0f = tail_lift * 0.5 + 0.4 * r
+    fin = pr.slab(
+        (xf, y0f, z_le_f),
+        crf,
+        (xf + hf * np.sin(cant), y0f + hf * np.cos(cant), z_le_f - hf * tan_f),
+        tip_f,
+        (0.012, 0.008),
+        thick_dir=(1, 0, 0),
+    )
+
+    # Horizontal tail, at the fuselage or on top of the fin (T-tail).
+    t_tail = kind != 1 and not twin and rng.random() < 0.25
+    bt, crt = u(0.12, 0.2), u(0.07, 0.12)
+    if t_tail:
+        y_t, z_le_t = y0f + hf - 0.005, z_le_f - hf * tan_f + 0.005
+        crt = min(crt, tip_f * 1.3)
+    else:
+        y_t, z_le_t = tail_lift * 0.6, -0.5 + crt + u(0.0, 0.05)
+    tan_t = np.tan(np.deg2rad(u(20, 40) if kind != 2 else u(0, 10)))
+    tailplane = pr.slab(
+        (0, y_t, z_le_t), crt, (bt, y_t, z_le_t - bt * tan_t), crt * 0.5, (0.012, 0.008)
+    )
+    return [fin] + (pr.mirror_x([fin]) if twin else []), tailplane
+
+
 def _airplane(rng: np.random.Generator) -> list[pr.Part]:
     u = rng.uniform
     kind = rng.choice(3, p=[0.5, 0.25, 0.25])  # airliner, fighter, light aircraft
@@ -62,37 +100,103 @@ def _airplane(rng: np.random.Generator) -> list[pr.Part]:
             parts.append(pr.box((0.014, blade, 0.006), (0, 0, 0.5 + 0.2 * r), rot))
             parts[-1].apply_translation(rot @ np.array([0, blade / 2, 0]))
 
-    # Vertical fin(s); fighters may have two, canted.
-    hf, crf = u(0.1, 0.18), u(0.12, 0.2)
-    tan_f = np.tan(np.deg2rad(u(30, 50)))
-    tip_f = crf * u(0.35, 0.6)
-    z_le_f = -0.5 + crf + 0.01
-    twin = kind == 1 and rng.random() < 0.5
-    xf, cant = (0.8 * r, 0.35) if twin else (0.0, 0.0)
-    y0f = tail_lift * 0.5 + 0.4 * r
-    fin = pr.slab(
-        (xf, y0f, z_le_f),
-        crf,
-        (xf + hf * np.sin(cant), y0f + hf * np.cos(cant), z_le_f - hf * tan_f),
-        tip_f,
-        (0.012, 0.008),
-        thick_dir=(1, 0, 0),
-    )
-    parts.extend([fin] + (pr.mirror_x([fin]) if twin else []))
-
-    # Horizontal tail, at the fuselage or on top of the fin (T-tail).
-    t_tail = kind != 1 and not twin and rng.random() < 0.25
-    bt, crt = u(0.12, 0.2), u(0.07, 0.12)
-    if t_tail:
-        y_t, z_le_t = y0f + hf - 0.005, z_le_f - hf * tan_f + 0.005
-        crt = min(crt, tip_f * 1.3)
-    else:
-        y_t, z_le_t = tail_lift * 0.6, -0.5 + crt + u(0.0, 0.05)
-    tan_t = np.tan(np.deg2rad(u(20, 40) if kind != 2 else u(0, 10)))
-    half.append(
-        pr.slab((0, y_t, z_le_t), crt, (bt, y_t, z_le_t - bt * tan_t), crt * 0.5, (0.012, 0.008))
-    )
+    fins, tailplane = _airplane_tail(rng, kind, r, tail_lift)
+    parts.extend(fins)
+    half.append(tailplane)
     return parts + pr.symmetric(half)
+
+
+def _ship_decks(rng: np.random.Generator, beam: float, hd: float, zb: float) -> list[pr.Part]:
+    """A ship's decks, funnels, mast and deck cargo on a hull of ``beam`` and deck height ``hd``."""
+    u = rng.uniform
+    parts: list[pr.Part] = []
+    zh = u(-0.3, 0.05)
+    y = hd
+    lz, bw = u(0.15, 0.35), beam * u(0.6, 0.85)
+    for _ in range(rng.integers(1, 4)):
+        th = u(0.04, 0.07)
+        parts.append(pr.span((-bw / 2, y, zh - lz / 2), (bw / 2, y + th, zh + lz / 2)))
+        y += th
+        lz *= u(0.6, 0.9)
+        bw *= u(0.75, 0.95)
+    if rng.random() < 0.7:
+        for k in range(rng.integers(1, 3)):
+            zf = zh - 0.05 - 0.07 * k
+            parts.append(pr.cyl(u(0.015, 0.03), (0, hd, zf), (0, y + u(0.04, 0.1), zf), 20))
+    mast_top = y + u(0.1, 0.25)
+    parts.append(pr.cyl(0.005, (0, y, zh + 0.02), (0, mast_top, zh + 0.02), 8))
+    parts.append(pr.span((-0.05, mast_top - 0.04, zh + 0.015), (0.05, mast_top - 0.03, zh + 0.025)))
+    if rng.random() < 0.35:  # deck cargo
+        for k in range(rng.integers(1, 4)):
+            z0 = zh + 0.2 + 0.07 * k
+            if z0 + 0.05 < zb + 0.05:
+                parts.append(pr.span((-beam * 0.35, hd, z0), (beam * 0.35, hd + 0.04, z0 + 0.05)))
+    return parts
+
+
+def _sailboat_rig(rng: np.random.Generator, beam: float, hd: float) -> list[pr.Part]:
+    """A sailboat's mast, boom, sails, cockpit and keel fin."""
+    u = rng.uniform
+    parts: list[pr.Part] = []
+    zm = u(0.0, 0.2)
+    top = hd + u(0.5, 0.9)
+    parts.append(pr.cyl(0.006, (0, hd, zm), (0, top, zm), 8))
+    boom_y = hd + u(0.04, 0.08)
+    chord = u(0.25, 0.4)
+    parts.append(pr.cyl(0.005, (0, boom_y, zm), (0, boom_y, zm - chord), 8))
+    parts.append(
+        pr.slab(
+            (0, boom_y + 0.01, zm - 0.008),
+            chord,
+            (0, top - 0.03, zm - 0.008),
+            0.02,
+            (0.004, 0.003),
+            thick_dir=(1, 0, 0),
+        )
+    )
+    if rng.random() < 0.6:  # jib from the bow to the mast head
+        z_bow = 0.45
+        parts.append(
+            pr.slab(
+                (0, hd + 0.02, z_bow),
+                z_bow - zm - 0.03,
+                (0, top - 0.05, zm + 0.03),
+                0.01,
+                (0.004, 0.003),
+                thick_dir=(1, 0, 0),
+            )
+        )
+    zc = zm - u(0.08, 0.15)
+    lc = u(0.15, 0.25)
+    parts.append(pr.span((-beam * 0.3, hd, zc - lc), (beam * 0.3, hd + u(0.03, 0.05), zc)))
+    if rng.random() < 0.6:  # keel fin
+        parts.append(
+            pr.slab(
+                (0, 0.01, zm + 0.05),
+                0.15,
+                (0, -u(0.1, 0.2), zm),
+                0.1,
+                (0.012, 0.01),
+                thick_dir=(1, 0, 0),
+            )
+        )
+    return parts
+
+
+def _speedboat_cabin(rng: np.random.Generator, beam: float, hd: float) -> list[pr.Part]:
+    """A speedboat's cabin and outboard motor."""
+    u = rng.uniform
+    parts: list[pr.Part] = []
+    zc, lc = u(-0.1, 0.1), u(0.2, 0.35)
+    hc = u(0.05, 0.09)
+    cab = pr.corners((-beam * 0.4, hd, zc - lc / 2), (beam * 0.4, hd + hc, zc + lc / 2))
+    cab[[3, 7], 2] -= lc * u(0.4, 0.7)
+    cab[[2, 3, 6, 7], 0] *= 0.85
+    parts.append(pr.hexa(cab))
+    if rng.random() < 0.7:  # outboard motor
+        parts.append(pr.span((-0.03, hd * 0.2, -0.55), (0.03, hd + 0.06, -0.49)))
+        parts.append(pr.span((-0.01, -0.05, -0.535), (0.01, hd * 0.2, -0.505)))
+    return parts
 
 
 def _vessel(rng: np.random.Generator) -> list[pr.Part]:
@@ -116,82 +220,9 @@ def _vessel(rng: np.random.Generator) -> list[pr.Part]:
     parts = [pr.hexa(stern), pr.hexa(bow)]
 
     if kind == 0:
-        zh = u(-0.3, 0.05)
-        y = hd
-        lz, bw = u(0.15, 0.35), beam * u(0.6, 0.85)
-        for _ in range(rng.integers(1, 4)):
-            th = u(0.04, 0.07)
-            parts.append(pr.span((-bw / 2, y, zh - lz / 2), (bw / 2, y + th, zh + lz / 2)))
-            y += th
-            lz *= u(0.6, 0.9)
-            bw *= u(0.75, 0.95)
-        if rng.random() < 0.7:
-            for k in range(rng.integers(1, 3)):
-                zf = zh - 0.05 - 0.07 * k
-                parts.append(pr.cyl(u(0.015, 0.03), (0, hd, zf), (0, y + u(0.04, 0.1), zf), 20))
-        mast_top = y + u(0.1, 0.25)
-        parts.append(pr.cyl(0.005, (0, y, zh + 0.02), (0, mast_top, zh + 0.02), 8))
-        parts.append(
-            pr.span((-0.05, mast_top - 0.04, zh + 0.015), (0.05, mast_top - 0.03, zh + 0.025))
-        )
-        if rng.random() < 0.35:  # deck cargo
-            for k in range(rng.integers(1, 4)):
-                z0 = zh + 0.2 + 0.07 * k
-                if z0 + 0.05 < zb + 0.05:
-                    parts.append(
-                        pr.span((-beam * 0.35, hd, z0), (beam * 0.35, hd + 0.04, z0 + 0.05))
-                    )
+        parts += _ship_decks(rng, beam, hd, zb)
     elif kind == 1:
-        zm = u(0.0, 0.2)
-        top = hd + u(0.5, 0.9)
-        parts.append(pr.cyl(0.006, (0, hd, zm), (0, top, zm), 8))
-        boom_y = hd + u(0.04, 0.08)
-        chord = u(0.25, 0.4)
-        parts.append(pr.cyl(0.005, (0, boom_y, zm), (0, boom_y, zm - chord), 8))
-        parts.append(
-            pr.slab(
-                (0, boom_y + 0.01, zm - 0.008),
-                chord,
-                (0, top - 0.03, zm - 0.008),
-                0.02,
-                (0.004, 0.003),
-                thick_dir=(1, 0, 0),
-            )
-        )
-        if rng.random() < 0.6:  # jib from the bow to the mast head
-            z_bow = 0.45
-            parts.append(
-                pr.slab(
-                    (0, hd + 0.02, z_bow),
-                    z_bow - zm - 0.03,
-                    (0, top - 0.05, zm + 0.03),
-                    0.01,
-                    (0.004, 0.003),
-                    thick_dir=(1, 0, 0),
-                )
-            )
-        zc = zm - u(0.08, 0.15)
-        lc = u(0.15, 0.25)
-        parts.append(pr.span((-beam * 0.3, hd, zc - lc), (beam * 0.3, hd + u(0.03, 0.05), zc)))
-        if rng.random() < 0.6:  # keel fin
-            parts.append(
-                pr.slab(
-                    (0, 0.01, zm + 0.05),
-                    0.15,
-                    (0, -u(0.1, 0.2), zm),
-                    0.1,
-                    (0.012, 0.01),
-                    thick_dir=(1, 0, 0),
-                )
-            )
+        parts += _sailboat_rig(rng, beam, hd)
     else:
-        zc, lc = u(-0.1, 0.1), u(0.2, 0.35)
-        hc = u(0.05, 0.09)
-        cab = pr.corners((-beam * 0.4, hd, zc - lc / 2), (beam * 0.4, hd + hc, zc + lc / 2))
-        cab[[3, 7], 2] -= lc * u(0.4, 0.7)
-        cab[[2, 3, 6, 7], 0] *= 0.85
-        parts.append(pr.hexa(cab))
-        if rng.random() < 0.7:  # outboard motor
-            parts.append(pr.span((-0.03, hd * 0.2, -0.55), (0.03, hd + 0.06, -0.49)))
-            parts.append(pr.span((-0.01, -0.05, -0.535), (0.01, hd * 0.2, -0.505)))
+        parts += _speedboat_cabin(rng, beam, hd)
     return parts

@@ -91,18 +91,13 @@ def _table(rng: np.random.Generator) -> list[pr.Part]:
     return parts
 
 
-def _cabinet(rng: np.random.Generator) -> list[pr.Part]:
-    u = rng.uniform
-    w, h, d = u(0.4, 1.6), u(0.5, 2.0), u(0.35, 0.6)
-    t = u(0.015, 0.03)
-    feet = rng.choice(3)  # none, four feet, plinth
-    y0 = 0.0 if feet == 0 else u(0.05, 0.15)
-    y1 = y0 + h
-    parts: list[pr.Part] = []
+def _cabinet_feet(feet: int, w: float, d: float, y0: float) -> list[pr.Part]:
+    """A cabinet's support of height ``y0``: none (``feet`` 0), four feet (1) or a plinth (2)."""
+    out: list[pr.Part] = []
     if feet == 1:
         for sx in (-1, 1):
             for sz in (-1, 1):
-                parts.append(
+                out.append(
                     pr.cyl(
                         0.025,
                         (sx * (w / 2 - 0.05), 0, sz * (d / 2 - 0.05)),
@@ -111,23 +106,47 @@ def _cabinet(rng: np.random.Generator) -> list[pr.Part]:
                     )
                 )
     elif feet == 2:
-        parts.append(pr.span((-w / 2 + 0.03, 0, -d / 2 + 0.03), (w / 2 - 0.03, y0, d / 2 - 0.03)))
+        out.append(pr.span((-w / 2 + 0.03, 0, -d / 2 + 0.03), (w / 2 - 0.03, y0, d / 2 - 0.03)))
+    return out
+
+
+def _carcass(
+    styles: np.ndarray, w: float, d: float, t: float, y0: float, y1: float
+) -> list[pr.Part]:
+    """A cabinet's body from ``y0`` to ``y1``: one block when every column is closed, else panels
+    of thickness ``t`` around the columns of ``styles`` (3: an open column)."""
+    out: list[pr.Part] = []
+    nc = len(styles)
+    cw = (w - 2 * t) / nc
+    front = d / 2
+    if not (styles == 3).any():
+        out.append(pr.span((-w / 2, y0, -d / 2), (w / 2, y1, front)))
+    else:  # carcass of panels, with the closed columns filled in
+        out.append(pr.span((-w / 2, y0, -d / 2), (-w / 2 + t, y1, front)))
+        out.append(pr.span((w / 2 - t, y0, -d / 2), (w / 2, y1, front)))
+        out.append(pr.span((-w / 2, y0, -d / 2), (w / 2, y0 + t, front)))
+        out.append(pr.span((-w / 2, y1 - t, -d / 2), (w / 2, y1, front)))
+        out.append(pr.span((-w / 2, y0, -d / 2), (w / 2, y1, -d / 2 + t)))
+        for k in range(1, nc):
+            x = -w / 2 + t + k * cw
+            out.append(pr.span((x - t / 2, y0, -d / 2), (x + t / 2, y1, front)))
+    return out
+
+
+def _cabinet(rng: np.random.Generator) -> list[pr.Part]:
+    u = rng.uniform
+    w, h, d = u(0.4, 1.6), u(0.5, 2.0), u(0.35, 0.6)
+    t = u(0.015, 0.03)
+    feet = rng.choice(3)  # none, four feet, plinth
+    y0 = 0.0 if feet == 0 else u(0.05, 0.15)
+    y1 = y0 + h
+    parts: list[pr.Part] = _cabinet_feet(feet, w, d, y0)
 
     nc = int(np.clip(round(w / u(0.4, 0.6)), 1, 4))
     styles = rng.choice(4, size=nc, p=[0.45, 0.3, 0.15, 0.1])  # doors, drawers, mixed, open
     cw = (w - 2 * t) / nc
     front = d / 2
-    if not (styles == 3).any():
-        parts.append(pr.span((-w / 2, y0, -d / 2), (w / 2, y1, front)))
-    else:  # carcass of panels, with the closed columns filled in
-        parts.append(pr.span((-w / 2, y0, -d / 2), (-w / 2 + t, y1, front)))
-        parts.append(pr.span((w / 2 - t, y0, -d / 2), (w / 2, y1, front)))
-        parts.append(pr.span((-w / 2, y0, -d / 2), (w / 2, y0 + t, front)))
-        parts.append(pr.span((-w / 2, y1 - t, -d / 2), (w / 2, y1, front)))
-        parts.append(pr.span((-w / 2, y0, -d / 2), (w / 2, y1, -d / 2 + t)))
-        for k in range(1, nc):
-            x = -w / 2 + t + k * cw
-            parts.append(pr.span((x - t / 2, y0, -d / 2), (x + t / 2, y1, front)))
+    parts += _carcass(styles, w, d, t, y0, y1)
     if rng.random() < 0.4:  # overhanging top
         o = u(0.015, 0.04)
         parts.append(pr.span((-w / 2 - o, y1, -d / 2), (w / 2 + o, y1 + u(0.02, 0.04), front + o)))
@@ -180,6 +199,52 @@ def _cabinet(rng: np.random.Generator) -> list[pr.Part]:
     return parts
 
 
+def _bed_board(
+    rng: np.random.Generator,
+    z: float,
+    top: float,
+    w: float,
+    ov: float,
+    bt: float,
+    frame_top: float,
+) -> list[pr.Part]:
+    """A bed's head- or footboard at ``z`` up to ``top``: a panel, or posts, rails and
+    spindles."""
+    u = rng.uniform
+    if rng.random() < 0.6:
+        return [pr.span((-w / 2 - ov, 0, z - bt / 2), (w / 2 + ov, top, z + bt / 2))]
+    post_r = u(0.025, 0.045)
+    out = [
+        pr.cyl(post_r, (s * (w / 2 + ov), 0, z), (s * (w / 2 + ov), top + 0.04, z), 16)
+        for s in (-1, 1)
+    ]
+    out.append(pr.span((-w / 2 - ov, top - 0.08, z - bt / 3), (w / 2 + ov, top, z + bt / 3)))
+    out.append(
+        pr.span((-w / 2 - ov, frame_top, z - bt / 3), (w / 2 + ov, frame_top + 0.06, z + bt / 3))
+    )
+    for x in np.linspace(-w / 2, w / 2, rng.integers(4, 10) + 2)[1:-1]:
+        out.append(pr.cyl(0.012, (x, frame_top + 0.06, z), (x, top - 0.08, z), 8))
+    return out
+
+
+def _canopy(top: float, w: float, ov: float, length: float, bt: float) -> list[pr.Part]:
+    """A four-poster bed's posts and rails up to ``top``, outside its boards."""
+    out: list[pr.Part] = []
+    zs = (-length / 2 - bt / 2, length / 2 + bt / 2)
+    for sx in (-1, 1):
+        for z in zs:
+            out.append(pr.cyl(0.035, (sx * (w / 2 + ov), 0, z), (sx * (w / 2 + ov), top, z), 12))
+        out.append(
+            pr.span(
+                (sx * (w / 2 + ov) - 0.03, top - 0.06, zs[0]),
+                (sx * (w / 2 + ov) + 0.03, top, zs[1]),
+            )
+        )
+    for z in zs:
+        out.append(pr.span((-w / 2 - ov, top - 0.06, z - 0.03), (w / 2 + ov, top, z + 0.03)))
+    return out
+
+
 def _bed(rng: np.random.Generator) -> list[pr.Part]:
     u = rng.uniform
     w, length = u(0.9, 1.9), u(1.9, 2.2)
@@ -208,46 +273,14 @@ def _bed(rng: np.random.Generator) -> list[pr.Part]:
     z_head = -length / 2 - bt / 2
     ov = u(0.0, 0.06)
 
-    def board(z: float, top: float) -> list[pr.Part]:
-        if rng.random() < 0.6:
-            return [pr.span((-w / 2 - ov, 0, z - bt / 2), (w / 2 + ov, top, z + bt / 2))]
-        post_r = u(0.025, 0.045)
-        out = [
-            pr.cyl(post_r, (s * (w / 2 + ov), 0, z), (s * (w / 2 + ov), top + 0.04, z), 16)
-            for s in (-1, 1)
-        ]
-        out.append(pr.span((-w / 2 - ov, top - 0.08, z - bt / 3), (w / 2 + ov, top, z + bt / 3)))
-        out.append(
-            pr.span(
-                (-w / 2 - ov, frame_top, z - bt / 3), (w / 2 + ov, frame_top + 0.06, z + bt / 3)
-            )
-        )
-        for x in np.linspace(-w / 2, w / 2, rng.integers(4, 10) + 2)[1:-1]:
-            out.append(pr.cyl(0.012, (x, frame_top + 0.06, z), (x, top - 0.08, z), 8))
-        return out
-
     head_top = u(0.9, 1.4)
-    parts.extend(board(z_head, head_top))
+    parts.extend(_bed_board(rng, z_head, head_top, w, ov, bt, frame_top))
     foot_top = u(0.45, 0.7)
     footboard = rng.random() < 0.45
     if footboard:
-        parts.extend(board(length / 2 + bt / 2, foot_top))
+        parts.extend(_bed_board(rng, length / 2 + bt / 2, foot_top, w, ov, bt, frame_top))
     if rng.random() < 0.1:  # four-poster canopy
-        top = u(1.8, 2.1)
-        zs = (-length / 2 - bt / 2, length / 2 + bt / 2)
-        for sx in (-1, 1):
-            for z in zs:
-                parts.append(
-                    pr.cyl(0.035, (sx * (w / 2 + ov), 0, z), (sx * (w / 2 + ov), top, z), 12)
-                )
-            parts.append(
-                pr.span(
-                    (sx * (w / 2 + ov) - 0.03, top - 0.06, zs[0]),
-                    (sx * (w / 2 + ov) + 0.03, top, zs[1]),
-                )
-            )
-        for z in zs:
-            parts.append(pr.span((-w / 2 - ov, top - 0.06, z - 0.03), (w / 2 + ov, top, z + 0.03)))
+        parts += _canopy(rng.uniform(1.8, 2.1), w, ov, length, bt)
 
     n_p = 1 if w < 1.3 else 2
     pw = (w - 0.1) / n_p

@@ -10,12 +10,10 @@ import numpy as np
 import nbv.assets.synthetic.primitives as pr
 
 
-def _chair(rng: np.random.Generator) -> list[pr.Part]:
+def _chair_back(rng: np.random.Generator, w: float, d: float, sh: float) -> list[pr.Part]:
+    """A chair's back (solid, spindles or bars), built upright at the rear edge of a seat of
+    width ``w``, depth ``d`` and height ``sh`` and tilted backwards."""
     u = rng.uniform
-    w, d, sh, st = u(0.4, 0.56), u(0.4, 0.55), u(0.38, 0.5), u(0.03, 0.08)
-    parts = [pr.span((-w / 2, sh - st, -d / 2), (w / 2, sh, d / 2))]
-
-    # Back, built upright at the rear edge of the seat and tilted backwards.
     bh, bt, tilt = u(0.3, 0.6), u(0.02, 0.06), u(0.0, 0.3)
     style = rng.choice(3, p=[0.45, 0.35, 0.2])
     back: list[pr.Part] = []
@@ -35,7 +33,15 @@ def _chair(rng: np.random.Generator) -> list[pr.Part]:
                 back.append(pr.span((-w / 2 + pw, y, -bt / 3), (w / 2 - pw, y + 0.035, bt / 3)))
     for p in back:
         p.apply_transform(pr.pose(pr.rot("x", -tilt), (0, sh, -d / 2 + bt / 2)))
-    parts.extend(back)
+    return back
+
+
+def _chair(rng: np.random.Generator) -> list[pr.Part]:
+    u = rng.uniform
+    w, d, sh, st = u(0.4, 0.56), u(0.4, 0.55), u(0.38, 0.5), u(0.03, 0.08)
+    parts = [pr.span((-w / 2, sh - st, -d / 2), (w / 2, sh, d / 2))]
+
+    parts.extend(_chair_back(rng, w, d, sh))
 
     legs = rng.choice(3, p=[0.6, 0.25, 0.15])  # four legs, pedestal, sled
     y_under = sh - st
