@@ -32,6 +32,7 @@ Distances are in world units; poses are camera-to-world, OpenCV convention.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import ConvexHull, cKDTree
@@ -407,6 +408,26 @@ def _pixel_capture(
     out = np.zeros(len(sample_idx), dtype=bool)
     if out.size == 0:
         return out
+    inverse, normal, height, edges, box = _triangle_projections(view_idx, tri_idx, hull, poses, k)
+    conic = _capture_conics(samples, sample_idx, view_idx, poses, k, eps, normal[:, inverse],
+                            height[inverse])  # fmt: skip
+    _walk_lines(conic, edges, box, inverse, k, out)
+    return out
+
+
+def _triangle_projections(
+    view_idx: np.ndarray, tri_idx: np.ndarray, hull: ConvexHull, poses: np.ndarray, k: Intrinsics
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each distinct (view, triangle) of the triples of :func:`_pixel_capture`, in the view's
+    camera frame.
+
+    Returns:
+        ``(inverse, normal, height, edges, box)``: ``(m,)`` the distinct pair of each triple;
+        ``(3, C)`` the triangle plane's normal and ``(C,)`` its offset (``n . y + h = 0``);
+        ``(3, 3, C)`` per edge the coefficients of u, v and 1 of the line through its projection,
+        ``>= 0`` inside; ``(2, 2, C)`` the projection's pixel bounding box (u or v, min or max;
+        infinite unless every corner lies in front of the camera).
+    """
     n_faces = len(hull.simplices)
     combo, inverse = np.unique(view_idx * n_faces + tri_idx, return_inverse=True)
     c_view, c_tri = np.divmod(combo, n_faces)
@@ -433,6 +454,36 @@ def _pixel_capture(
         box[axis, 0] = np.where(front, pix.min(axis=0), -np.inf)
         box[axis, 1] = np.where(front, pix.max(axis=0), np.inf)
 
+    return inverse, normal, height, edges, box
+
+
+class _Conic(NamedTuple):
+    """Per triple of :func:`_pixel_capture`: the pixels ``x`` with ``(x - c)^T P (x - c) <=
+    kappa`` see the triangle's plane within ``eps`` of the sample (an ellipse where ``ellipse``)."""
+
+    ellipse: np.ndarray
+    kappa: np.ndarray
+    c_u: np.ndarray
+    c_v: np.ndarray
+    half_u: np.ndarray
+    half_v: np.ndarray
+    p_uu: np.ndarray
+    p_uv: np.ndarray
+    p_vv: np.ndarray
+
+
+def _capture_conics(
+    samples: np.ndarray,
+    sample_idx: np.ndarray,
+    view_idx: np.ndarray,
+    poses: np.ndarray,
+    k: Intrinsics,
+    eps: float,
+    n: np.ndarray,
+    h: np.ndarray,
+) -> _Conic:
+    """The conic of each triple (view, sample, triangle): ``n`` ``(3, m)`` and ``h`` ``(m,)`` are
+    its triangle's plane in the view's camera frame."""
     # The samples in each view's camera frame, one product per view (faster than a gather of
     # a rotation per triple).
     y = np.empty((3, len(sample_idx)))
@@ -441,8 +492,6 @@ def _pixel_capture(
     for v in np.flatnonzero(np.diff(bounds_v)):
         sel = by_view[bounds_v[v] : bounds_v[v + 1]]
         y[:, sel] = poses[v, :3, :3].T @ (samples[sample_idx[sel]] - poses[v, :3, 3]).T
-    n = normal[:, inverse]
-    h = height[inverse]
     ahead = y[2] > 0.0
     z = np.where(ahead, y[2], 1.0)
     ray = y / z  # m(x) at the sample's own projection
@@ -475,6 +524,22 @@ def _pixel_capture(
     c_v = k.fy * ray[1] + k.cy - (p_uu * q_v - p_uv * q_u) / det
     half_u = np.sqrt(np.maximum(kappa * p_vv / det, 0.0))
     half_v = np.sqrt(np.maximum(kappa * p_uu / det, 0.0))
+    return _Conic(ellipse, kappa, c_u, c_v, half_u, half_v, p_uu, p_uv, p_vv)
+
+
+def _walk_lines(
+    conic: _Conic,
+    edges: np.ndarray,
+    box: np.ndarray,
+    inverse: np.ndarray,
+    k: Intrinsics,
+    out: np.ndarray,
+) -> None:
+    """Mark in ``out`` ``(m,)`` the triples whose ellipse holds an integer pixel inside the image
+    and inside the projection of the triangle (``edges`` and ``box`` of
+    :func:`_triangle_projections`, the triple's pair ``inverse``), trying lines from the
+    ellipse's centre outwards."""
+    ellipse, kappa, c_u, c_v, half_u, half_v, p_uu, p_uv, p_vv = conic
     # Walk along the shorter axis "a" (rows when it is v) and solve along the other, "b".
     rows = half_v <= half_u
     centre_a, centre_b = np.where(rows, c_v, c_u), np.where(rows, c_u, c_v)
@@ -523,7 +588,6 @@ def _pixel_capture(
             ~out[todo]
             & ((start[todo] - reach >= first[todo]) | (start[todo] + reach <= last[todo]))
         ]
-    return out
 
 
 def _near_by_sample(near: NearTriangles, n: int) -> tuple[np.ndarray, np.ndarray]:
