@@ -122,7 +122,7 @@ def lockstep(proto, episodes, model, viewspace: str, starts: list[int]) -> list[
     n = len(model.views[viewspace].poses)
     states = []
     for start in starts:
-        state = EpisodeState(model, viewspace, np.zeros(n, dtype=bool), [start])
+        state = EpisodeState(model.captured(viewspace), np.zeros(n, dtype=bool), [start])
         state.view_state[start] = True
         states.append(state)
     for _ in range(EPISODE_VIEWS - 1):

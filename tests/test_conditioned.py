@@ -182,11 +182,13 @@ def test_training_map_features_are_those_the_policy_reads(dataset):
         for i in range(first, first + 5):
             state = samples["view_state"][i]
             order += [int(v) for v in np.flatnonzero(state) if v not in order]
-            got = policy.map_features(EpisodeState(model, "mix", state.copy(), list(order)))
+            got = policy.map_features(
+                EpisodeState(model.captured("mix"), state.copy(), list(order))
+            )
             np.testing.assert_allclose(samples["features"][i], got, atol=1e-6)
             assert (got[state] == 0).all() and got[~state, 0].max() == 1.0
     with pytest.raises(ValueError, match="reads map features: build its policy with fresh"):
-        ConditionedPolicy(net).map_features(EpisodeState(model, "mix", state, order))
+        ConditionedPolicy(net).map_features(EpisodeState(model.captured("mix"), state, order))
 
 
 @pytest.mark.slow

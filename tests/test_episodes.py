@@ -9,7 +9,7 @@ from datagen import small_settings
 import nbv.dataset
 from nbv.dataset.generator import generate
 from nbv.policies.baselines import OraclePolicy, RandomPolicy
-from nbv.policies.episode import auc, curves, run_episode
+from nbv.policies.episode import auc, run_episode
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,7 @@ def test_auc_of_known_curves():
 
 def test_curves_are_monotone_and_match_bits(model):
     views = [3, 17, 0, 25]
-    cov, vig = curves(model, "original", views)
+    cov, vig = model.curves("original", views)
     assert np.all(np.diff(cov) >= 0) and np.all(np.diff(vig) >= -1e-12)
     bits = np.unpackbits(model.views["original"].coverage, axis=1)[:, : len(model.gt_points)]
     assert cov[-1] == pytest.approx(bits[views].any(axis=0).mean())

@@ -78,7 +78,7 @@ def tiny(tmp_path_factory):
 def _map_after(model, order: list[int]) -> InformationGainPolicy:
     policy = InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
     state = np.isin(np.arange(33), order)
-    policy.update(EpisodeState(model, "original", state, order))
+    policy.update(EpisodeState(model.captured("original"), state, order))
     return policy
 
 

@@ -67,7 +67,7 @@ def test_next_view_from_captures_is_the_episode_of_the_dataset(model, tmp_path, 
     # The planner's predicted gain is that of its decision: the best unvisited view's on its map.
     ctx = MethodContext({}, HullSettings(), CAMERA, EPS, 10, VolumetricSettings())
     policy = METHODS["ig"].build(ctx, policy_rng(0, "ig"))
-    state = EpisodeState(model, "original", np.isin(np.arange(33), views[:captured]),
+    state = EpisodeState(model.captured("original"), np.isin(np.arange(33), views[:captured]),
                          list(views[:captured]))  # fmt: skip
     choice = policy(state)
     poses = model.views["original"].poses
@@ -90,7 +90,7 @@ def test_a_translated_and_scaled_copy_of_the_captures_gives_the_same_plan(
     if method != "hull_sco":  # a replanning method's next view is the episode's third view
         assert result.chosen == [views[2]]
     # The poses are the user's world: the chosen camera sits at SCALE times distance 1.
-    world = result.frame.poses_to_world(result.model.views["plan"].poses)
+    world = result.frame.poses_to_world(result.views.poses)
     assert np.linalg.norm(world[result.chosen[0], :3, 3] - SHIFT) == pytest.approx(SCALE)
 
 

@@ -17,7 +17,7 @@ from nbv.infogain.occupancy import FREE, OCCUPIED, UNKNOWN
 from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.config import PlanSettings
 from nbv.policies.episode import captured_state
-from nbv.policies.volumetric import InformationGainPolicy, SensedViews
+from nbv.policies.volumetric import InformationGainPolicy
 from nbv.render.scene import OBJECT, TABLE, WALL, SceneSettings, table_scene
 from nbv.scan.candidates import REASONS, CandidateSettings, limit_candidates
 from nbv.scan.captures import read_captures, write_captures
@@ -112,9 +112,8 @@ def _ig_map(folder, frame: ObjectFrame, camera=CAMERA):
     captures, _ = read_captures(folder)
     poses = frame.poses_to_normalised(np.stack([c.pose for c in captures]))
     parts = [frame.points_to_normalised(c.points).astype(np.float32) for c in captures]
-    state = captured_state(poses, parts, list(range(len(captures))))
-    view = SensedViews.of(state.model.views[state.viewspace], sensed_misses(captures, frame))
-    state.model.views[state.viewspace] = view
+    state = captured_state(poses, parts, list(range(len(captures))),
+                           misses=sensed_misses(captures, frame))  # fmt: skip
     policy = InformationGainPolicy(VolumetricSettings(), camera)
     policy.update(state)
     return policy.occupancy
@@ -197,7 +196,7 @@ def test_the_plan_from_noisy_captures_with_holes_is_within_one_view_of_the_clean
     assert noisy_plan.n_candidates == clean_plan.n_candidates == 32
     # One view apart: neighbours on the viewspace, an edge of its directions' convex hull
     # (the sphere's triangulation).
-    directions = clean_plan.model.views["plan"].poses[: clean_plan.n_candidates, :3, 3]
+    directions = clean_plan.views.poses[: clean_plan.n_candidates, :3, 3]
     edges = {frozenset(e) for t in ConvexHull(directions).simplices
              for e in ((t[0], t[1]), (t[1], t[2]), (t[0], t[2]))}  # fmt: skip
     a, b = noisy_plan.chosen[0], clean_plan.chosen[0]

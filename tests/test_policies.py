@@ -392,7 +392,7 @@ def test_flat_and_empty_clouds_are_planned_with_a_note(model, networks):
 
 
 def test_state_cloud_is_what_the_captured_views_saw(model):
-    state = EpisodeState(model, "original", np.zeros(33, bool), [4, 9])
+    state = EpisodeState(model.captured("original"), np.zeros(33, bool), [4, 9])
     view = model.views["original"]
     assert len(state.cloud()) == len(view.view_points(4)) + len(view.view_points(9))
 

@@ -171,7 +171,7 @@ def model_decisions(
             order, state = [int(start)], np.zeros(n, bool)
             state[start] = True
             while len(order) < min(settings.n_views, n):
-                policy.update(EpisodeState(model, name, state.copy(), list(order)))
+                policy.update(EpisodeState(model.captured(name), state.copy(), list(order)))
                 candidates = np.flatnonzero(~state)
                 voxels = policy.candidate_voxels(view.poses)[candidates]
                 features = view_features(policy.occupancy, voxels, positions, order, candidates)

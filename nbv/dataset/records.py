@@ -10,14 +10,12 @@ from functools import cached_property
 
 import numpy as np
 
+from nbv.geometry.hull import QhullFailure
 from nbv.geometry.scores import coverage_from_bits, coverage_gains, vig_gains, vig_of_state
 from nbv.geometry.union import UnionHulls
+from nbv.geometry.views import CapturedViews, offsets_of
 
-
-def offsets_of(arrays: list[np.ndarray]) -> np.ndarray:
-    """(len + 1,) int64 start offsets of arrays stored one after the other (``ViewData``'s
-    ``offsets`` and ``hull_offsets``)."""
-    return np.concatenate([[0], np.cumsum([len(a) for a in arrays])]).astype(np.int64)
+__all__ = ["SCORES", "ModelData", "ViewData", "offsets_of", "score_functions"]
 
 
 @dataclass
@@ -48,6 +46,11 @@ class ViewData:
     def view_points(self, v: int) -> np.ndarray:
         """(N_v, 3) float32 points of view ``v``."""
         return self.points[self.offsets[v] : self.offsets[v + 1]]
+
+    def captured(self) -> CapturedViews:
+        """What a camera gives a policy of these views: poses and points (the same arrays), no
+        ground truth."""
+        return CapturedViews(self.poses, self.points, self.offsets, self.points_per_view)
 
     def view_hulls(self) -> list[np.ndarray]:
         """Every view's (K_v, 3) hull vertices, float64 (for
@@ -82,6 +85,43 @@ class ModelData:
     gt_hull_volume: float
     views: dict[str, ViewData] = field(default_factory=dict)
     gt_hull_error: str = ""
+
+    def captured(self, viewspace: str) -> CapturedViews:
+        """What a policy sees of the views of ``viewspace`` (:meth:`ViewData.captured`)."""
+        return self.views[viewspace].captured()
+
+    def view_gains(self, viewspace: str, score: str, view_state: np.ndarray) -> np.ndarray:
+        """(V,) the true gain of every view of ``viewspace`` after ``view_state`` (0 for visited
+        ones): what the oracle ranks by (:func:`score_functions`)."""
+        return score_functions(self, score, viewspace)[0](view_state)
+
+    def curves(
+        self, viewspace: str, views: list[int], notes: list[str] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Coverage and VIG after each view of ``views`` (in order): two (len(views),) arrays.
+
+        VIG is NaN where it is undefined (a flat ground truth, or one Qhull failed on) and where
+        Qhull fails on the union of the visited views; each such failure is added to ``notes``.
+        The hull volumes come from the view record's memo
+        (:class:`nbv.geometry.union.UnionHulls`).
+        """
+        view = self.views[viewspace]
+        n_gt = len(self.gt_points)
+        defined = self.gt_hull_volume > 0
+        state = np.zeros(len(view.poses), dtype=bool)
+        cov, vig = [], []
+        for i, v in enumerate(views):
+            state[v] = True
+            cov.append(coverage_from_bits(view.coverage, state, n_gt))
+            try:
+                vig.append(
+                    view.unions.volume(views[: i + 1]) / self.gt_hull_volume if defined else np.nan
+                )
+            except QhullFailure as err:
+                vig.append(np.nan)
+                if notes is not None:
+                    notes.append(f"VIG after {len(vig)} views unknown: {err}")
+        return np.array(cov), np.array(vig)
 
 
 #: The scores a view can be chosen by: coverage of the ground truth (PC-NBV) and VIG.

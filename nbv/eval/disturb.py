@@ -22,8 +22,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from nbv.dataset.records import ModelData
 from nbv.eval.tables import episode_means, paired_from_means
+from nbv.geometry.views import CapturedViews
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.policies.lockstep import Batchable, NetworkRequest, Request
@@ -114,7 +114,7 @@ class RandomHullPlanner(_Wrapper):
     radius: float = 0.5
 
     def __call__(self, state: EpisodeState) -> list[int]:
-        view = state.model.views[state.viewspace]
+        view = state.views
         n = max(len(view.view_points(state.order[0])), 4)
         remaining = min(self.inner.n_views, len(view.poses)) - len(state.order)
         cloud = random_ball(n, self.radius, self.rng)
@@ -133,23 +133,21 @@ class NoisyPoints(_Wrapper):
     inner: NetworkPolicy | HullSCOPolicy | InformationGainPolicy
     rng: np.random.Generator
     sigma: float
-    _model: ModelData | None = None
+    _views: CapturedViews | None = None
 
-    def noisy(self, model: ModelData, viewspace: str) -> ModelData:
-        """``model`` with the points of ``viewspace`` disturbed (the same ones on every call)."""
-        if self._model is None:
-            view = model.views[viewspace]
-            noise = self.rng.normal(0.0, self.sigma, size=view.points.shape)
-            noisy_view = replace(view, points=(view.points + noise).astype(view.points.dtype))
-            self._model = replace(model, views={viewspace: noisy_view})
-        return self._model
+    def noisy(self, views: CapturedViews) -> CapturedViews:
+        """``views`` with their points disturbed (the same ones on every call)."""
+        if self._views is None:
+            noise = self.rng.normal(0.0, self.sigma, size=views.points.shape)
+            self._views = replace(views, points=(views.points + noise).astype(views.points.dtype))
+        return self._views
 
     def __call__(self, state: EpisodeState) -> int | list[int]:
         return self.inner(self.shown(state))
 
     def shown(self, state: EpisodeState) -> EpisodeState:
-        """The state the wrapped policy is shown: the model's points disturbed."""
-        return replace(state, model=self.noisy(state.model, state.viewspace))
+        """The state the wrapped policy is shown: the views' points disturbed."""
+        return replace(state, views=self.noisy(state.views))
 
 
 @dataclass

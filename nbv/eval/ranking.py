@@ -27,6 +27,7 @@ one-shot hull planners) are refused with the list of those that have them.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 from dataclasses import dataclass
@@ -99,13 +100,18 @@ def oracle_states(model: ModelData, viewspace: str, start: int, n_views: int) ->
     """The states of the oracle's episode from ``start`` (:class:`OraclePolicy` on coverage):
     after 1, ..., ``n_views - 1`` captured views."""
     oracle = OraclePolicy("coverage")
-    n = len(model.views[viewspace].poses)
+    views = model.captured(viewspace)
+    n = len(views.poses)
+
+    def true_gains(score: str, view_state: np.ndarray) -> np.ndarray:
+        return model.view_gains(viewspace, score, view_state)
+
     order, out = [start], []
     for _ in range(n_views - 1):
         state = np.zeros(n, dtype=bool)
         state[order] = True
-        out.append(EpisodeState(model, viewspace, state, list(order)))
-        order.append(oracle(out[-1]))
+        out.append(EpisodeState(views, state, list(order)))  # what the ranked methods see
+        order.append(oracle(dataclasses.replace(out[-1], true_gains=true_gains)))
     return out
 
 

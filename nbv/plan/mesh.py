@@ -79,7 +79,7 @@ def plan_mesh(settings: PlanSettings) -> tuple[PlanResult, np.ndarray]:
     gains = recorder.gains[: len(episode.views) - 1]
     return PlanResult(
         frame=frame,
-        model=model,
+        views=model.captured(VIEWSPACE),
         n_candidates=len(poses),
         visited=[settings.start_view],
         chosen=episode.views[1:],
@@ -97,7 +97,7 @@ def save_episode_captures(settings: PlanSettings, result: PlanResult, depth: np.
     """Write the episode's first ``save_captures`` views as a capture folder, in world units."""
     folder = settings.captures_out or settings.out_dir / "captures"
     views = (result.visited + result.chosen)[: settings.save_captures]
-    poses = result.frame.poses_to_world(result.model.views[VIEWSPACE].poses[views])
+    poses = result.frame.poses_to_world(result.views.poses[views])
     # Rendered views: their background is empty space, and the folder says so.
     write_captures(folder, depth[views] / result.frame.scale, poses, settings.camera,
                    result.frame.center, result.frame.radius, no_return="free")  # fmt: skip
@@ -116,7 +116,7 @@ def reconstruct_episode(
     world units as ``save_episode_captures`` does) and score the mesh against the input mesh."""
     frame = result.frame
     views = result.visited + result.chosen
-    poses = frame.poses_to_world(result.model.views[VIEWSPACE].poses[views])
+    poses = frame.poses_to_world(result.views.poses[views])
     out = fuse_views(settings, frame, list(depth[views] / frame.scale), poses,
                      [settings.camera] * len(views), views)  # fmt: skip
     if len(out.triangles):

@@ -34,7 +34,7 @@ from nbv.geometry.camera import opencv_to_blender
 from nbv.geometry.viewspace_generators import ViewspaceSpec
 from nbv.plan.config import PlanSettings
 from nbv.policies.episode import auc
-from nbv.scan.result import VIEWSPACE, PlanResult
+from nbv.scan.result import PlanResult
 from nbv.utils.atomic import fsync_replace, write_text
 
 log = logging.getLogger(__name__)
@@ -92,7 +92,7 @@ def settings_record(settings: PlanSettings) -> dict:
 
 def plan_record(settings: PlanSettings, result: PlanResult) -> dict:
     """The content of ``plan.json`` (see the module docstring)."""
-    world = result.frame.poses_to_world(result.model.views[VIEWSPACE].poses)
+    world = result.frame.poses_to_world(result.views.poses)
     record = {
         "input": {"mesh": str(settings.mesh)} if settings.mesh else {
             "captures": str(settings.captures), "views": result.captured_files},
@@ -210,7 +210,7 @@ def write_outputs(settings: PlanSettings, result: PlanResult) -> list[Path]:
     record = plan_record(settings, result)
     frame = result.frame
     cloud = frame.points_to_world(result.cloud)
-    world = frame.poses_to_world(result.model.views[VIEWSPACE].poses)
+    world = frame.poses_to_world(result.views.poses)
     written = []
     if not len(cloud):
         # A flat object seen edge-on, or one too small for a pixel: the plan still stands.

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
-from nbv.dataset.records import score_functions
 from nbv.geometry.viewspace import angular_distances, spread_picks
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
@@ -57,7 +57,7 @@ class SpreadPolicy:
 
     @staticmethod
     def _directions(state: EpisodeState) -> np.ndarray:
-        positions = state.model.views[state.viewspace].poses[:, :3, 3]
+        positions = state.views.poses[:, :3, 3]
         return positions / np.linalg.norm(positions, axis=1, keepdims=True)
 
     def view_scores(self, state: EpisodeState) -> np.ndarray:
@@ -74,7 +74,10 @@ class SpreadPolicy:
 
 @dataclass
 class OraclePolicy:
-    """Greedy by the true gain of ``score`` (``coverage`` or ``vig``), ties to the lowest index."""
+    """Greedy by the true gain of ``score`` (``coverage`` or ``vig``), ties to the lowest index.
+    The one policy given the ground truth (``EpisodeState.true_gains``)."""
+
+    reads_ground_truth: ClassVar[bool] = True
 
     score: str = "coverage"
     timings: dict[str, list[float]] = field(default_factory=dict)
@@ -84,7 +87,9 @@ class OraclePolicy:
 
     def __call__(self, state: EpisodeState) -> int:
         t0 = time.perf_counter()
-        gains, _ = score_functions(state.model, self.score, state.viewspace)
-        choice = masked_argmax(gains(state.view_state), state.view_state)
+        if state.true_gains is None:
+            raise ValueError("the oracle needs the ground truth; the episode gave none")
+        gains = state.true_gains(self.score, state.view_state)
+        choice = masked_argmax(gains, state.view_state)
         record_time(self.timings, "gains", time.perf_counter() - t0)
         return choice

@@ -86,7 +86,7 @@ class ConditionedPolicy:
                 "InformationGainPolicy of the map settings it was trained on"
             )
         self.mapper.update(state)
-        poses = state.model.views[state.viewspace].poses
+        poses = state.views.poses
         voxels = self.mapper.candidate_voxels(poses)
         features = unvisited_features(self.mapper.occupancy, voxels, poses[:, :3, 3], state.order)
         return features.astype(np.float32)
@@ -206,7 +206,7 @@ class ConditionedPolicy:
                 t0 = time.perf_counter()
                 features.append(episode.map_features(state))
                 record_time(episode.timings, "map", time.perf_counter() - t0)
-        positions = [s.model.views[s.viewspace].poses[:, :3, 3] for s in states]
+        positions = [s.views.poses[:, :3, 3] for s in states]
         return self.scores_many([s.cloud() for s in states], positions,
                                 [s.view_state for s in states], features, episodes)  # fmt: skip
 

@@ -1,8 +1,12 @@
 """Reconstruction episodes: from a start view, a policy picks views one after another.
 
-An episode runs on one model of a dataset and one of its viewspaces. After each captured view the
+An episode runs on one model of a dataset and one of its viewspaces. A policy sees what a camera
+gives (:class:`~nbv.geometry.views.CapturedViews`: the poses and the captured views' points) and
+the view state; only a policy that reads the ground truth (the oracle,
+``reads_ground_truth = True``) is also given the model's true gains. After each captured view the
 coverage (from the per-view coverage bits, i.e. the full-resolution views) and the VIG (from the
-per-view hull vertices) of the views so far are recorded. The protocol of PC-NBV's follow-up work:
+per-view hull vertices) of the views so far are recorded (:meth:`GroundTruth.curves`). The
+protocol of PC-NBV's follow-up work:
 start views 1, 3, 7, 10, 15, 24, 27, 30, then 9 more views (10 in all), visited views masked.
 
 AUC (PC-NBV's definition) of a 10-view coverage curve: ``(cov_1 + ... + cov_9 + 0.5 cov_10) / 10``.
@@ -11,14 +15,13 @@ AUC (PC-NBV's definition) of a 10-view coverage curve: ``(cov_1 + ... + cov_9 + 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
-from nbv.dataset.records import ModelData, ViewData, offsets_of
-from nbv.geometry.hull import QhullFailure
-from nbv.geometry.scores import coverage_from_bits
+from nbv.geometry.views import CapturedViews
 
 #: The start views of the evaluation protocol (indices into the original viewspace).
 DEFAULT_START_VIEWS = (1, 3, 7, 10, 15, 24, 27, 30)
@@ -26,27 +29,46 @@ DEFAULT_START_VIEWS = (1, 3, 7, 10, 15, 24, 27, 30)
 EPISODE_VIEWS = 10
 
 
+class GroundTruth(Protocol):
+    """A model with its ground truth (a dataset record,
+    :class:`nbv.dataset.records.ModelData`): what an episode is played on and scored against."""
+
+    def captured(self, viewspace: str) -> CapturedViews:
+        """What a policy sees of the views of ``viewspace``."""
+        ...
+
+    def view_gains(self, viewspace: str, score: str, view_state: np.ndarray) -> np.ndarray:
+        """(V,) the true gain of every view after ``view_state``."""
+        ...
+
+    def curves(
+        self, viewspace: str, views: list[int], notes: list[str] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Coverage and VIG after each view of ``views``."""
+        ...
+
+
 @dataclass
 class EpisodeState:
     """What a policy may look at when it picks the next view.
 
     Attributes:
-        model: the model's dataset record (a policy other than the oracle should read only the
-            captured views' points).
-        viewspace: name of the viewspace in ``model.views``.
+        views: what the camera gave: every candidate's pose and the captured views' points (a
+            policy reads the points of the views in ``order`` only).
         view_state: (V,) bool, the views captured so far.
         order: the captured views in order.
+        true_gains: ``(score, view_state) -> (V,)`` true gains of the views, given only to a
+            policy that reads the ground truth (the oracle); None otherwise.
     """
 
-    model: ModelData
-    viewspace: str
+    views: CapturedViews
     view_state: np.ndarray
     order: list[int]
+    true_gains: Callable[[str, np.ndarray], np.ndarray] | None = None
 
     def cloud(self) -> np.ndarray:
         """(N, 3) float32: the accumulated cloud of the captured views (stored points)."""
-        view = self.model.views[self.viewspace]
-        return np.concatenate([view.view_points(v) for v in self.order])
+        return np.concatenate([self.views.view_points(v) for v in self.order])
 
 
 class Policy(Protocol):
@@ -111,58 +133,52 @@ def auc(curve: np.ndarray) -> float:
     return float((curve[:-1].sum() + 0.5 * curve[-1]) / len(curve))
 
 
-def curves(
-    model: ModelData, viewspace: str, views: list[int], notes: list[str] | None = None
-) -> tuple[np.ndarray, np.ndarray]:
-    """Coverage and VIG after each view of ``views`` (in order): two (len(views),) arrays.
-
-    VIG is NaN where it is undefined (a flat ground truth, or one Qhull failed on) and where
-    Qhull fails on the union of the visited views; each such failure is added to ``notes``.
-    The hull volumes come from the view record's memo (:class:`nbv.geometry.union.UnionHulls`).
-    """
-    view = model.views[viewspace]
-    n_gt = len(model.gt_points)
-    defined = model.gt_hull_volume > 0
-    state = np.zeros(len(view.poses), dtype=bool)
-    cov, vig = [], []
-    for i, v in enumerate(views):
-        state[v] = True
-        cov.append(coverage_from_bits(view.coverage, state, n_gt))
-        try:
-            vig.append(
-                view.unions.volume(views[: i + 1]) / model.gt_hull_volume if defined else np.nan
-            )
-        except QhullFailure as err:
-            vig.append(np.nan)
-            if notes is not None:
-                notes.append(f"VIG after {len(vig)} views unknown: {err}")
-    return np.array(cov), np.array(vig)
+def reads_ground_truth(policy: object) -> bool:
+    """Whether ``policy`` is given the ground truth (its class says ``reads_ground_truth``)."""
+    return bool(getattr(policy, "reads_ground_truth", False))
 
 
 @dataclass
 class RunningEpisode:
-    """An episode under way: its state, the views a one-shot policy has queued, and the seconds
-    of each decision so far (the steps both :func:`run_episode` and
+    """An episode under way: its model and state, the views a one-shot policy has queued, and
+    the seconds of each decision so far (the steps both :func:`run_episode` and
     :func:`nbv.policies.lockstep.run_lockstep` take)."""
 
+    model: GroundTruth
+    viewspace: str
     state: EpisodeState
     n_views: int
     queue: list[int] = field(default_factory=list)
     times: list[float] = field(default_factory=list)
 
     @classmethod
-    def start(cls, model: ModelData, viewspace: str, start: int, n_views: int) -> RunningEpisode:
+    def start(
+        cls,
+        model: GroundTruth,
+        viewspace: str,
+        start: int,
+        n_views: int,
+        ground_truth: bool = False,
+    ) -> RunningEpisode:
         """The episode after its start view; ``n_views`` is capped at the viewspace's size.
+        ``ground_truth``: the state carries the model's true gains (for the oracle).
 
         Raises:
             ValueError: a start view outside the viewspace.
         """
-        n = len(model.views[viewspace].poses)
+        views = model.captured(viewspace)
+        n = len(views.poses)
         if not 0 <= start < n:
             raise ValueError(f"start view {start} is outside 0..{n - 1}")
-        state = EpisodeState(model, viewspace, np.zeros(n, dtype=bool), [int(start)])
+        true_gains = None
+        if ground_truth:
+
+            def true_gains(score: str, view_state: np.ndarray) -> np.ndarray:
+                return model.view_gains(viewspace, score, view_state)
+
+        state = EpisodeState(views, np.zeros(n, dtype=bool), [int(start)], true_gains)
         state.view_state[start] = True
-        return cls(state, min(n_views, n))
+        return cls(model, viewspace, state, min(n_views, n))
 
     @property
     def done(self) -> bool:
@@ -196,12 +212,12 @@ class RunningEpisode:
     def episode(self) -> Episode:
         """The finished episode, with its coverage and VIG curves."""
         notes: list[str] = []
-        cov, vig = curves(self.state.model, self.state.viewspace, self.state.order, notes)
+        cov, vig = self.model.curves(self.viewspace, self.state.order, notes)
         return Episode(self.state.order, cov, vig, self.times, notes)
 
 
 def run_episode(
-    model: ModelData,
+    model: GroundTruth,
     viewspace: str,
     start: int,
     policy: Policy,
@@ -212,7 +228,7 @@ def run_episode(
     A policy returns one view, or a list of views (a one-shot planner), which are taken in order
     until the episode is full; a visited or out-of-range view is an error of the policy.
     """
-    run = RunningEpisode.start(model, viewspace, start, n_views)
+    run = RunningEpisode.start(model, viewspace, start, n_views, reads_ground_truth(policy))
     while not run.done:
         if not run.queue:
             t0 = time.perf_counter()
@@ -227,7 +243,7 @@ def captured_state(
     parts: list[np.ndarray],
     order: list[int],
     points_per_view: int = 0,
-    viewspace: str = "captures",
+    misses: list | None = None,
 ) -> EpisodeState:
     """The state a policy reads after the captured views ``order`` of a real scanner, in the
     planners' frame (the object within radius 0.5 of the origin).
@@ -236,24 +252,14 @@ def captured_state(
         poses: (V, 4, 4) camera-to-world of the candidates (and any extra captured views).
         parts: V arrays (N_v, 3) of each view's points; empty for views not captured.
         order: the captured views in order.
-        points_per_view: the subsampling the points were kept with (0 = all), for the record.
-        viewspace: the name of the record's one viewspace.
+        points_per_view: the subsampling the points were kept with (0 = all).
+        misses: per view what its missing pixels mean (:attr:`CapturedViews.misses`); None for
+            rendered views.
 
     Returns:
-        An :class:`EpisodeState` over a one-viewspace record without ground truth (its
-        coverage bits and hull vertices are empty: only the oracle would read them).
+        An :class:`EpisodeState` of the captured views alone: no ground truth.
     """
-    poses = np.asarray(poses, dtype=np.float64)
-    view = ViewData(
-        poses=poses, points=np.concatenate(parts).astype(np.float32), offsets=offsets_of(parts),
-        coverage=np.zeros((len(poses), 1), np.uint8), hull_points=np.zeros((0, 3), np.float32),
-        hull_offsets=np.zeros(len(poses) + 1, dtype=np.int64), points_per_view=points_per_view,
-    )  # fmt: skip
-    model = ModelData(
-        key="captures", category="", split="", source="captures", source_path="",
-        center=np.zeros(3), scale=1.0, seed=0, gt_points=np.zeros((0, 3), np.float32),
-        gt_hull_volume=float("nan"), views={viewspace: view},
-    )  # fmt: skip
-    state = EpisodeState(model, viewspace, np.zeros(len(poses), dtype=bool), list(order))
+    views = CapturedViews.of_parts(poses, parts, points_per_view, misses)
+    state = EpisodeState(views, np.zeros(len(views.poses), dtype=bool), list(order))
     state.view_state[list(order)] = True
     return state

@@ -159,7 +159,7 @@ class HullSCOPolicy:
 
     def _probe_cloud(self, state: EpisodeState) -> np.ndarray:
         """The start view's cloud plus ``probe_points`` random points of each later view."""
-        view = state.model.views[state.viewspace]
+        view = state.views
         parts = [view.view_points(state.order[0])]
         for v in state.order[1:]:
             pts = view.view_points(v)
@@ -173,7 +173,7 @@ class HullSCOPolicy:
         """Plan every view the episode has left (``n_views``, at most the viewspace's size, less
         the captured ones) on the hull of ``cloud`` ((N, 3) float, world units), the captured
         views excluded (:meth:`plan_from`)."""
-        poses = state.model.views[state.viewspace].poses
+        poses = state.views.poses
         remaining = min(self.n_views, len(poses)) - len(state.order)
         return self.plan_from(cloud, poses, list(state.order), remaining)
 
@@ -192,5 +192,5 @@ class HullSCOReplanPolicy(HullSCOPolicy):
     views it plans, so each plan is of one view.) ``probes`` is not used."""
 
     def __call__(self, state: EpisodeState) -> int:
-        poses = state.model.views[state.viewspace].poses
+        poses = state.views.poses
         return self.plan_from(state.cloud(), poses, list(state.order), 1)[0]

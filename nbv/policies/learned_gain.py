@@ -53,7 +53,7 @@ class LearnedGainPolicy(InformationGainPolicy):
         t0 = time.perf_counter()
         self.update(state)
         t1 = time.perf_counter()
-        view = state.model.views[state.viewspace]
+        view = state.views
         candidates = self.candidate_voxels(view.poses)
         open_ = np.flatnonzero(~state.view_state)
         features = unvisited_features(self.occupancy, candidates, view.poses[:, :3, 3], state.order)
@@ -65,7 +65,7 @@ class LearnedGainPolicy(InformationGainPolicy):
 
     def __call__(self, state: EpisodeState) -> int:
         choice = masked_argmax(self.view_scores(state), state.view_state)
-        candidates = self.candidate_voxels(state.model.views[state.viewspace].poses)
+        candidates = self.candidate_voxels(state.views.poses)
         gain = view_gains(self.occupancy, candidates[choice : choice + 1], self.settings.metric)
         self.last_gains = [float(gain[0])]
         self.counts["planned"] += 1

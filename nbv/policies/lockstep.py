@@ -24,8 +24,15 @@ from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-from nbv.dataset.records import ModelData
-from nbv.policies.episode import EPISODE_VIEWS, Episode, EpisodeState, Policy, RunningEpisode
+from nbv.policies.episode import (
+    EPISODE_VIEWS,
+    Episode,
+    EpisodeState,
+    GroundTruth,
+    Policy,
+    RunningEpisode,
+    reads_ground_truth,
+)
 
 
 class Request(Protocol):
@@ -117,7 +124,7 @@ def _decide_batched(waiting: list[tuple[RunningEpisode, Request, float]]) -> Non
 
 
 def run_lockstep(
-    model: ModelData, specs: Sequence[EpisodeSpec], n_views: int = EPISODE_VIEWS
+    model: GroundTruth, specs: Sequence[EpisodeSpec], n_views: int = EPISODE_VIEWS
 ) -> list[Episode]:
     """Run every episode of ``specs`` on ``model`` until each has ``n_views`` views (or its
     viewspace's size), the batchable policies' decisions batched by network.
@@ -129,7 +136,10 @@ def run_lockstep(
         ValueError: a start view outside its viewspace, or a policy that chose a visited or
             out-of-range view.
     """
-    running = [RunningEpisode.start(model, s.viewspace, s.start, n_views) for s in specs]
+    running = [
+        RunningEpisode.start(model, s.viewspace, s.start, n_views, reads_ground_truth(s.policy))
+        for s in specs
+    ]
     while True:
         active = [run for run in running if not run.done]
         if not active:

@@ -6,9 +6,10 @@ unvisited candidate is scored by casting rays through the map
 views' points and poses and the candidates' poses, nothing else.
 
 A dataset's view (a rendered one) carves free space along the image blocks no stored point falls
-in: its background is empty. A depth sensor's views come as a :class:`SensedViews` record, which
-says per view what its missing pixels mean (:class:`nbv.infogain.occupancy.Misses`); by default
-nothing, and the map leaves them unknown.
+in: its background is empty. A depth sensor's views come with ``misses``
+(:attr:`nbv.geometry.views.CapturedViews.misses`), which say per view what its missing pixels
+mean (:class:`nbv.infogain.occupancy.Misses`); by default nothing, and the map leaves them
+unknown.
 """
 
 from __future__ import annotations
@@ -19,38 +20,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nbv.dataset.records import ViewData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.infogain.gain import candidate_voxels, view_gains
-from nbv.infogain.occupancy import Misses, OccupancyMap
+from nbv.infogain.occupancy import OccupancyMap
 from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
-
-
-@dataclass
-class SensedViews(ViewData):
-    """A view record of a depth sensor's captures (the planner's input, not a dataset's).
-
-    Attributes:
-        misses: per view, what its rays that return nothing mean: None (the default of every
-            view not listed) leaves what the sensor did not measure unknown; a
-            :class:`~nbv.infogain.occupancy.Misses` carves free space where its user declared it.
-    """
-
-    misses: list[Misses | None] = field(default_factory=list)
-
-    @classmethod
-    def of(cls, view: ViewData, misses: list[Misses | None]) -> SensedViews:
-        """The record ``view`` with each view's ``misses``."""
-        fields = {name: getattr(view, name) for name in ViewData.__dataclass_fields__}
-        return cls(**fields, misses=list(misses))
-
-    def misses_of(self, v: int) -> Misses | None:
-        """What view ``v``'s missing pixels mean (None: unknown)."""
-        return self.misses[v] if v < len(self.misses) else None
 
 
 @dataclass
@@ -81,7 +58,7 @@ class InformationGainPolicy:
 
     def update(self, state: EpisodeState) -> None:
         """Insert the captured views not in the map yet."""
-        view = state.model.views[state.viewspace]
+        view = state.views
         if self.occupancy is None:
             self.occupancy = OccupancyMap(self.settings.occupancy())
         for v in state.order:
@@ -97,7 +74,7 @@ class InformationGainPolicy:
         points, pose = view.view_points(v), view.poses[v]
         digest = hashlib.blake2b(points.tobytes(), digest_size=16)
         digest.update(np.asarray(pose).tobytes())
-        sensed = isinstance(view, SensedViews)
+        sensed = view.sensed
         misses = view.misses_of(v) if sensed else None
         if sensed:
             digest.update(b"sensed" + (b"" if misses is None else misses.digest()))
@@ -175,7 +152,7 @@ class InformationGainPolicy:
         t0 = time.perf_counter()
         self.update(state)
         t1 = time.perf_counter()
-        candidates = self.candidate_voxels(state.model.views[state.viewspace].poses)
+        candidates = self.candidate_voxels(state.views.poses)
         gains = np.zeros(len(candidates))
         open_ = np.flatnonzero(~state.view_state)
         gains[open_] = view_gains(
@@ -183,7 +160,7 @@ class InformationGainPolicy:
         )
         score = gains
         if self.settings.spread_weight > 0 and gains.max() > 0:
-            positions = state.model.views[state.viewspace].poses[:, :3, 3]
+            positions = state.views.poses[:, :3, 3]
             nearest = angular_distances(positions, positions[state.view_state]).min(axis=1)
             score = gains / gains.max() + self.settings.spread_weight * nearest / 180.0
         record_time(self.timings, "map", t1 - t0)

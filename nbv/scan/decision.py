@@ -6,7 +6,7 @@ run on it).
 Each view is matched to the candidate it was taken from as it comes (the nearest free one
 within ``match_degrees``, seen from the object's centre), or joins the candidates as an extra
 visited view; its points are normalised and subsampled with the generator of its index, and
-what its missing pixels mean is kept (:class:`nbv.policies.volumetric.SensedViews`). A decision
+what its missing pixels mean is kept (:attr:`nbv.geometry.views.CapturedViews.misses`). A decision
 builds the state of the views so far (:func:`nbv.policies.episode.captured_state`) and calls the
 same policy again: ``ig``'s map takes only the views it has not seen, and the candidates' rays are
 traced again only where a pose changed
@@ -25,7 +25,7 @@ from nbv.geometry.clouds import random_subset
 from nbv.infogain.occupancy import Misses
 from nbv.policies.episode import captured_state, stage_seconds
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
-from nbv.policies.volumetric import InformationGainPolicy, SensedViews
+from nbv.policies.volumetric import InformationGainPolicy
 from nbv.scan.capture import Capture, CaptureError, check_views_see
 from nbv.scan.frame import ObjectFrame
 from nbv.scan.method import policy_rng, predicted_gains, scan_context
@@ -38,7 +38,7 @@ from nbv.scan.placement import (
     sensed_misses,
     support_of,
 )
-from nbv.scan.result import VIEWSPACE, PlanResult
+from nbv.scan.result import PlanResult
 from nbv.scan.settings import ScanSettings
 from nbv.utils.seeding import named_rng
 
@@ -185,12 +185,10 @@ class Decider:
                 "views; raise n_views to plan more"
             )
         policy = self._policy()
-        state = captured_state(self.poses, self.parts, self.index, settings.points_per_view,
-                               VIEWSPACE)  # fmt: skip
         # A sensor's views: what a missing pixel means is the captures' declaration, not the
         # dataset's "background is free" (points subsampled create no misses either).
-        state.model.views[VIEWSPACE] = SensedViews.of(state.model.views[VIEWSPACE], self.misses)
-        state.model.source_path = self.where
+        state = captured_state(self.poses, self.parts, self.index, settings.points_per_view,
+                               self.misses)  # fmt: skip
         if isinstance(policy, InformationGainPolicy) and self._traced_poses is not None:
             policy.retrace_candidates(self.poses, self._traced_poses)
         t0 = time.perf_counter()
@@ -200,7 +198,7 @@ class Decider:
         chosen = [int(v) for v in (choice if isinstance(choice, list | tuple) else [choice])]
         gains, unit = predicted_gains(policy, chosen)
         result = PlanResult(
-            frame=self.frame, model=state.model, n_candidates=self.n, visited=list(self.index),
+            frame=self.frame, views=state.views, n_candidates=self.n, visited=list(self.index),
             chosen=chosen, gains=gains, gain_unit=unit, decisions=[seconds],
             stages=stage_seconds(policy), captured_files=self._files(), notes=self._notes(),
             frame_estimated=self.source == "estimated", camera=self.camera,

@@ -221,7 +221,7 @@ class Planner:
         return self._views(self.decide())
 
     def _views(self, result: PlanResult) -> list[NextView]:
-        world = result.frame.poses_to_world(result.model.views["plan"].poses)
+        world = result.frame.poses_to_world(result.views.poses)
         kept = (result.candidate_limits or {}).get("kept_views")
         out = []
         for k, v in enumerate(result.chosen):

@@ -1,7 +1,8 @@
 """What a plan found (:class:`PlanResult`), whatever its input.
 
-Both inputs become what the evaluator's policies read, a :class:`nbv.dataset.records.ModelData`
-of one viewspace (:data:`VIEWSPACE`), in the planners' normalised frame (:mod:`nbv.scan.frame`):
+Both inputs become what the evaluator's policies read, :class:`~nbv.geometry.views.CapturedViews`
+(the candidates' poses and the captured views' points), in the planners' normalised frame
+(:mod:`nbv.scan.frame`):
 the object's centre at the origin, its radius 0.5, the rig's up axis +y.
 """
 
@@ -11,11 +12,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nbv.dataset.records import ModelData
 from nbv.geometry.camera import Intrinsics
+from nbv.geometry.views import CapturedViews
 from nbv.scan.frame import ObjectFrame
 
-#: The viewspace's name in the plan's record.
+#: The viewspace's name in a mesh episode's record.
 VIEWSPACE = "plan"
 
 
@@ -54,7 +55,7 @@ class PlanResult:
 
     Attributes:
         frame: the object's frame (world <-> normalised).
-        model: the record the policy read (candidates first, then extra captured views).
+        views: the views the policy read (candidates first, then extra captured views).
         n_candidates: V, the viewspace's views (indices ``0..V-1``).
         visited: the captured views in order (candidate indices; extras ``>= V``).
         chosen: the planned views in order (candidate indices).
@@ -81,7 +82,7 @@ class PlanResult:
     """
 
     frame: ObjectFrame
-    model: ModelData
+    views: CapturedViews
     n_candidates: int
     visited: list[int]
     chosen: list[int]
@@ -102,5 +103,4 @@ class PlanResult:
     @property
     def cloud(self) -> np.ndarray:
         """(N, 3) float32 accumulated cloud of the visited views, normalised frame."""
-        view = self.model.views[VIEWSPACE]
-        return np.concatenate([view.view_points(v) for v in self.visited])
+        return np.concatenate([self.views.view_points(v) for v in self.visited])
