@@ -26,14 +26,8 @@ from nbv.models.view_conditioned import (
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
-from train.conditioned import (
-    VIEWSPACES,
-    ConditionedSettings,
-    _pool,
-    draw_samples,
-    run,
-    split_models,
-)
+from train.conditioned import _pool, draw_samples, run, split_models
+from train.conditioned_config import VIEWSPACES, ConditionedSettings
 from train.scorer import mixed_views
 
 TINY = ConditionedConfig(point_channels=(8, 16), view_channels=(8,), visited_channels=4,

@@ -9,13 +9,23 @@ can pair the methods episode by episode.
 
 from __future__ import annotations
 
+import json
+import logging
+from pathlib import Path
+
 import numpy as np
 from tqdm import tqdm
 
+from nbv.models.checkpoints import load_checkpoint
 from nbv.policies.episode import EPISODE_VIEWS, run_episode
+from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import BASELINES, METHODS, MethodContext
 from nbv.setcover.settings import HullSettings
+from nbv.utils.atomic import write_text
 from nbv.utils.seeding import named_rng
+from train.config import TrainSettings
+
+log = logging.getLogger(__name__)
 
 #: The file in the run folder.
 HELDOUT_FILE = "heldout.json"
@@ -74,3 +84,32 @@ def score_heldout(
             bar.update()
     bar.close()
     return out
+
+
+def heldout_result(out_dir: Path, dataset, keys: list[str], settings: TrainSettings, n_views: int):
+    """``heldout.json`` of ``best.pt``: read back when it belongs to this best.pt, else scored."""
+    best = out_dir / "best.pt"
+    _, extra = load_checkpoint(best, n_views=n_views)
+    stamp = {"epoch": int(extra["epoch"]), "select": settings.select,
+             "random_repeats": settings.random_repeats}  # fmt: skip
+    path = out_dir / HELDOUT_FILE
+    if path.exists():
+        saved = json.loads(path.read_text())
+        if saved.get("checkpoint") == stamp and saved.get("start_views") == list(
+            settings.start_views
+        ):
+            return saved
+    log.info("scoring best.pt (epoch %d) on the held-out category %s (%d models)",
+             stamp["epoch"] + 1, settings.held_out, len(keys))  # fmt: skip
+    result = score_heldout(
+        dataset, keys, settings.start_views, NetworkPolicy.from_checkpoint(best, n_views=n_views),
+        settings.seed, settings.random_repeats, settings.progress,
+    )  # fmt: skip
+    result.update(
+        checkpoint=stamp,
+        start_views=list(settings.start_views),
+        held_out=settings.held_out,
+        selection_keys=extra.get("selection_keys"),
+    )
+    write_text(path, json.dumps(result, indent=1))
+    return result

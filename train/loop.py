@@ -29,31 +29,37 @@ from __future__ import annotations
 import json
 import logging
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
 import nbv.dataset
-from nbv.dataset.reader import DatasetError, shard_files
-from nbv.dataset.samples import SampleSet, load_samples, samples_path
-from nbv.models.checkpoints import CheckpointError, load_checkpoint, save_checkpoint
+from nbv.dataset.reader import DatasetError
+from nbv.dataset.samples import SampleSet, load_samples
+from nbv.models.checkpoints import load_checkpoint, save_checkpoint
 from nbv.models.config import PCNBVConfig
 from nbv.models.inference import for_inference
 from nbv.models.pcnbv import PCNBV
-from nbv.models.precision import autocast, flush_denormals, resolve_precision
+from nbv.models.precision import autocast, flush_denormals
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
 from nbv.utils.atomic import write_text
 from train.augment import Augmentation
 from train.baselines import write_baselines
 from train.config import TrainSettings, stored_settings
-from train.heldout import HELDOUT_FILE, score_heldout
+from train.heldout import heldout_result
 from train.losses import batch_loss, weight_penalty
 from train.metrics import SPEARMAN_FILE, ranking_metrics, spearman_by_model
 from train.records import append_csv_rows, dataset_identity
-from train.resume import check_resumable, clear_run, file_digest, run_identity
+from train.resume import (
+    checkpoint_extra,
+    clear_run,
+    resume_state,
+    run_identity,
+    samples_identity,
+    save_last,
+)
 
 log = logging.getLogger(__name__)
 
@@ -247,30 +253,6 @@ def episodes_metric(dataset, keys: list[str], policy, start_views) -> np.ndarray
     return np.array(out)
 
 
-def _resume(out_dir: Path, identity: dict, model, optimizer, scheduler) -> tuple[int, float]:
-    """Load ``last.pt`` when present; returns (next epoch, best validation AUC).
-
-    Raises:
-        TrainConfigError: ``last.pt`` was made with other settings, data or samples.
-    """
-    last = out_dir / "last.pt"
-    if not last.exists():
-        return 0, -np.inf
-    saved, extra = load_checkpoint(last, n_views=model.config.n_views)
-    check_resumable(out_dir, extra.get("run_identity"), identity)
-    if saved.config != model.config:
-        raise CheckpointError(
-            f"checkpoint {last} holds another network ({saved.config}); set out_dir=... or "
-            "resume=false to start afresh"
-        )
-    model.load_state_dict(saved.state_dict())
-    opt = extra["optimizer"]
-    opt["state"] = {int(k): v for k, v in opt["state"].items()}
-    optimizer.load_state_dict(opt)
-    scheduler.load_state_dict(extra["scheduler"])
-    return int(extra["epoch"]) + 1, float(extra.get("best_auc", -np.inf))
-
-
 def _batches(train, batches, settings: TrainSettings, rng, augmentation, epoch: int, device):
     """The epoch's input tensors, batch after batch.
 
@@ -323,66 +305,11 @@ def run(settings: TrainSettings) -> dict:
         return _train(settings)
 
 
-def samples_identity(settings: TrainSettings) -> str:
-    """Hash of the samples files of the dataset (one per shard)."""
-    folder = Path(settings.dataset)
-    files = [folder] if folder.is_file() else [samples_path(f) for f in shard_files(folder)]
-    return file_digest([f for f in files if f.exists()])
-
-
 def _network_policy(model: PCNBV, settings: TrainSettings, lmax: int) -> NetworkPolicy:
     return NetworkPolicy(
         for_inference(model, settings.precision), settings.model.input, settings.eval_points, lmax,
         settings.precision,
     )  # fmt: skip
-
-
-def _heldout(out_dir: Path, dataset, keys: list[str], settings: TrainSettings, n_views: int):
-    """``heldout.json`` of ``best.pt``: read back when it belongs to this best.pt, else scored."""
-    best = out_dir / "best.pt"
-    _, extra = load_checkpoint(best, n_views=n_views)
-    stamp = {"epoch": int(extra["epoch"]), "select": settings.select,
-             "random_repeats": settings.random_repeats}  # fmt: skip
-    path = out_dir / HELDOUT_FILE
-    if path.exists():
-        saved = json.loads(path.read_text())
-        if saved.get("checkpoint") == stamp and saved.get("start_views") == list(
-            settings.start_views
-        ):
-            return saved
-    log.info("scoring best.pt (epoch %d) on the held-out category %s (%d models)",
-             stamp["epoch"] + 1, settings.held_out, len(keys))  # fmt: skip
-    result = score_heldout(
-        dataset, keys, settings.start_views, NetworkPolicy.from_checkpoint(best, n_views=n_views),
-        settings.seed, settings.random_repeats, settings.progress,
-    )  # fmt: skip
-    result.update(
-        checkpoint=stamp,
-        start_views=list(settings.start_views),
-        held_out=settings.held_out,
-        selection_keys=extra.get("selection_keys"),
-    )
-    write_text(path, json.dumps(result, indent=1))
-    return result
-
-
-def _checkpoint_extra(settings: TrainSettings, identity: dict, lmax: int, device,
-                      selection_keys: list[str]) -> dict:  # fmt: skip
-    """What every checkpoint of the run records beside its weights."""
-    return {
-        "settings": stored_settings(settings),
-        "run_identity": identity,
-        "dataset_identity": identity["dataset_identity"],
-        "input": settings.model.input,
-        "lmax": lmax,
-        "eval_points": settings.eval_points,
-        # Resolved here: "auto" would be resolved again on the evaluating machine, maybe otherwise.
-        "precision": resolve_precision(settings.precision, device),
-        "held_out": settings.held_out,
-        "select": settings.select,
-        # The models whose episodes chose this checkpoint: nbv.eval leaves them out.
-        "selection_keys": selection_keys if settings.select == "valid" else [],
-    }
 
 
 def _ranking_row(model, val, probe, baselines: dict, settings: TrainSettings, device,
@@ -402,14 +329,6 @@ def _ranking_row(model, val, probe, baselines: dict, settings: TrainSettings, de
     for name, stages in baselines.items():
         row.update({f"{name}_val_{k}": v for k, v in stages.items()})
     return row
-
-
-def _save_last(out_dir: Path, model, optimizer, scheduler, extra: dict) -> None:
-    """``last.pt``: the weights, ``extra``, and the optimizer's and scheduler's state to resume."""
-    opt = optimizer.state_dict()
-    opt["state"] = {str(k): v for k, v in opt["state"].items()}
-    save_checkpoint(out_dir / "last.pt", model,
-                    {**extra, "optimizer": opt, "scheduler": scheduler.state_dict()})  # fmt: skip
 
 
 def _train(settings: TrainSettings) -> dict:
@@ -438,7 +357,7 @@ def _train(settings: TrainSettings) -> dict:
         deleted = clear_run(out_dir)
         if deleted:
             log.info("resume=false: deleted %s of %s", ", ".join(deleted), out_dir)
-    first_epoch, best_auc = _resume(out_dir, identity, model, optimizer, scheduler)
+    first_epoch, best_auc = resume_state(out_dir, identity, model, optimizer, scheduler)
     if first_epoch:
         log.info("resuming %s at epoch %d", out_dir, first_epoch + 1)
     plain = {**stored_settings(settings), "held_out": settings.held_out}
@@ -447,7 +366,7 @@ def _train(settings: TrainSettings) -> dict:
     from torch.utils.tensorboard import SummaryWriter
 
     writer = SummaryWriter(str(out_dir / "tb"))
-    extra_base = _checkpoint_extra(settings, identity, lmax, device, selection_keys)
+    extra_base = checkpoint_extra(settings, identity, lmax, device, selection_keys)
     baselines = {}
     if len(val):
         viewspace = str(train.attrs.get("viewspace", "original"))
@@ -477,13 +396,13 @@ def _train(settings: TrainSettings) -> dict:
                 writer.add_scalar(name, value, epoch + 1)
         append_csv_rows(out_dir / "metrics.csv", [row])
         extra = {**extra_base, "epoch": epoch, "metrics": row, "best_auc": best_auc}
-        _save_last(out_dir, model, optimizer, scheduler, extra)
+        save_last(out_dir, model, optimizer, scheduler, extra)
     writer.close()
     if settings.held_out is None:  # fold=-1: no category left to score
         _, extra = load_checkpoint(out_dir / "best.pt", n_views=n_views)
         selected, means = int(extra["epoch"]) + 1, {}
     else:
-        heldout = _heldout(out_dir, dataset, heldout_keys, settings, n_views)
+        heldout = heldout_result(out_dir, dataset, heldout_keys, settings, n_views)
         selected = heldout["checkpoint"]["epoch"] + 1
         means = {m: float(np.mean(v)) for m, v in heldout["auc"].items()}
     return {

@@ -13,6 +13,12 @@ import hashlib
 import shutil
 from pathlib import Path
 
+import numpy as np
+
+from nbv.dataset.reader import shard_files
+from nbv.dataset.samples import samples_path
+from nbv.models.checkpoints import CheckpointError, load_checkpoint, save_checkpoint
+from nbv.models.precision import resolve_precision
 from train.config import TrainConfigError, TrainSettings, stored_settings
 
 #: Settings that may differ on resumption: they do not change the numbers of the epochs run.
@@ -96,3 +102,61 @@ def clear_run(out_dir: Path) -> list[str]:
             continue
         deleted.append(name)
     return deleted
+
+
+def resume_state(out_dir: Path, identity: dict, model, optimizer, scheduler) -> tuple[int, float]:
+    """Load ``last.pt`` when present; returns (next epoch, best validation AUC).
+
+    Raises:
+        TrainConfigError: ``last.pt`` was made with other settings, data or samples.
+    """
+    last = out_dir / "last.pt"
+    if not last.exists():
+        return 0, -np.inf
+    saved, extra = load_checkpoint(last, n_views=model.config.n_views)
+    check_resumable(out_dir, extra.get("run_identity"), identity)
+    if saved.config != model.config:
+        raise CheckpointError(
+            f"checkpoint {last} holds another network ({saved.config}); set out_dir=... or "
+            "resume=false to start afresh"
+        )
+    model.load_state_dict(saved.state_dict())
+    opt = extra["optimizer"]
+    opt["state"] = {int(k): v for k, v in opt["state"].items()}
+    optimizer.load_state_dict(opt)
+    scheduler.load_state_dict(extra["scheduler"])
+    return int(extra["epoch"]) + 1, float(extra.get("best_auc", -np.inf))
+
+
+def save_last(out_dir: Path, model, optimizer, scheduler, extra: dict) -> None:
+    """``last.pt``: the weights, ``extra``, and the optimizer's and scheduler's state to resume."""
+    opt = optimizer.state_dict()
+    opt["state"] = {str(k): v for k, v in opt["state"].items()}
+    save_checkpoint(out_dir / "last.pt", model,
+                    {**extra, "optimizer": opt, "scheduler": scheduler.state_dict()})  # fmt: skip
+
+
+def samples_identity(settings: TrainSettings) -> str:
+    """Hash of the samples files of the dataset (one per shard)."""
+    folder = Path(settings.dataset)
+    files = [folder] if folder.is_file() else [samples_path(f) for f in shard_files(folder)]
+    return file_digest([f for f in files if f.exists()])
+
+
+def checkpoint_extra(settings: TrainSettings, identity: dict, lmax: int, device,
+                      selection_keys: list[str]) -> dict:  # fmt: skip
+    """What every checkpoint of the run records beside its weights."""
+    return {
+        "settings": stored_settings(settings),
+        "run_identity": identity,
+        "dataset_identity": identity["dataset_identity"],
+        "input": settings.model.input,
+        "lmax": lmax,
+        "eval_points": settings.eval_points,
+        # Resolved here: "auto" would be resolved again on the evaluating machine, maybe otherwise.
+        "precision": resolve_precision(settings.precision, device),
+        "held_out": settings.held_out,
+        "select": settings.select,
+        # The models whose episodes chose this checkpoint: nbv.eval leaves them out.
+        "selection_keys": selection_keys if settings.select == "valid" else [],
+    }
