@@ -28,6 +28,7 @@ import nbv.export.config
 import nbv.plan.config
 import nbv.plan.example
 import train.conditioned
+import train.conditioned_config
 import train.config
 import train.scorer
 import train.summary
@@ -150,7 +151,7 @@ def test_the_schemas_hold_the_fields_of_the_settings_they_feed():
     assert net_keys == set(PCNBVConfig.__dataclass_fields__) - {"n_views"}
     samples = set(composed("dataset").samples) - {"enabled"}
     assert samples == set(SampleSettings.__dataclass_fields__) - {"seed"}
-    widths = set(train.conditioned.NetFields.__dataclass_fields__)
+    widths = set(train.conditioned_config.NetFields.__dataclass_fields__)
     assert widths == set(ConditionedConfig.__dataclass_fields__) - {"map_features"}
 
 

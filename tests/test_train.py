@@ -33,7 +33,8 @@ from train.baselines import (
 )
 from train.config import ModelSettings, ScoreSettings, TrainConfigError, TrainSettings
 from train.fitcheck import first_models, fit_check
-from train.loop import run, split_samples
+from train.folds import split_samples
+from train.loop import run
 from train.metrics import best_view_hits, spearman, spearman_by_stage
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -35,7 +35,6 @@ import torch
 from tqdm import tqdm
 
 import nbv.dataset
-from nbv.dataset.reader import DatasetError
 from nbv.dataset.samples import SampleSet, load_samples
 from nbv.models.checkpoints import load_checkpoint, save_checkpoint
 from nbv.models.config import PCNBVConfig
@@ -48,6 +47,7 @@ from nbv.utils.atomic import write_text
 from train.augment import Augmentation
 from train.baselines import write_baselines
 from train.config import TrainSettings, stored_settings
+from train.folds import fold_keys, split_samples
 from train.heldout import heldout_result
 from train.losses import batch_loss, weight_penalty
 from train.metrics import SPEARMAN_FILE, ranking_metrics, spearman_by_model
@@ -71,41 +71,6 @@ def choose_device(name: str) -> torch.device:
     if name == "cuda" and not torch.cuda.is_available():
         raise ValueError("device=cuda: no CUDA device here; use device=auto or device=cpu")
     return torch.device(name)
-
-
-def split_samples(samples: SampleSet, settings: TrainSettings) -> tuple[SampleSet, SampleSet]:
-    """(training, validation) samples of a fold: the train and the valid split of the fold's
-    training categories. The held-out category is in neither.
-
-    Raises:
-        DatasetError: no training samples, or no validation samples with ``select=valid``.
-    """
-    known = np.isin(samples.category, settings.categories)
-    if settings.held_out is not None:
-        known &= samples.category != settings.held_out
-    train = samples.select(known & (samples.split == "train"))
-    val = samples.select(known & (samples.split == "valid"))
-    if len(train) == 0 or (len(val) == 0 and settings.select == "valid"):
-        raise DatasetError(
-            f"{settings.dataset}: fold {settings.fold} has {len(train)} training and {len(val)} "
-            f"validation samples (train and valid splits of the training categories but "
-            f"{settings.held_out!r}; categories present: {sorted(set(samples.category))}); make "
-            "a dataset with the training categories and a valid split, or set select=last"
-        )
-    return train, val
-
-
-def fold_keys(dataset, settings: TrainSettings) -> tuple[list[str], list[str]]:
-    """(selection, held-out) model keys of a fold: the valid split of the training categories
-    but the held-out one (episodes that choose best.pt), and every model of the held-out
-    category (scored once at the end)."""
-    selection = [
-        k
-        for k in dataset.keys(split="valid")
-        if dataset.index[k][1] in settings.categories and dataset.index[k][1] != settings.held_out
-    ]
-    held_out = [] if settings.held_out is None else dataset.keys(category=settings.held_out)
-    return selection, held_out
 
 
 def batch_inputs(

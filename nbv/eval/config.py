@@ -25,12 +25,19 @@ from nbv.config.schema import (
     PathsConfig,
     ProtocolConfig,
     check_views,
-    names,
 )
 from nbv.config.settings import Entry, check_ranges, setting
+from nbv.eval.config_checks import (
+    check_allowed,
+    check_viewspaces,
+    distinct_positive,
+    group_ranges,
+    names_setting,
+    optional_path,
+)
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
-from nbv.geometry.viewspace import ViewspaceError, get_viewspace, is_named
+from nbv.geometry.viewspace import ViewspaceError, get_viewspace
 from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
 from nbv.policies.registry import CHECKS, DEFAULT_METHODS, METHODS, NETWORK_INPUTS, networks_of
@@ -43,67 +50,12 @@ PREPARED = {"meshes": "folder", "ycb": "ycb", "scans": "scans"}
 DATASETS = ("unseen", "test", *PREPARED)
 #: The two viewspaces every dataset renders (the networks' and the permuted one).
 VIEWSPACES = ("original", "permuted")
-#: What ``viewspace`` may name, as a message lists it.
-VIEWSPACE_CHOICES = ("original", "permuted", "sphere_<n>", "hemisphere_<n>", "a file of x y z rows")
 BACKENDS = ("raycast", "blender")
 # TODO(issue 28): one shared constant for the points kept per view (also nbv/plan/config.py
 # and nbv/dataset/generator_settings.py); conf/protocol/ sets the value users get.
 
 #: The error of a setting that cannot be used (one class for every entry point).
 EvalConfigError = ConfigError
-
-
-def names_setting(label: str, default: tuple[str, ...], key: str | None = None, **kw: Any) -> Any:
-    """A field the YAML gives as null, one name or a list of names (a tuple of names here).
-
-    Args:
-        label: the key path a bad value's message names (``disturb.checks``).
-        default: the field's default; the YAML's default is the same list (``config_default``
-            in ``kw`` overrides it, e.g. null for "derived").
-        key: the YAML key, when it is not the field's name.
-    """
-    kw.setdefault("config_default", list(default))
-    return setting(default, key=key, config=Any, convert=lambda v: names(v, label), **kw)
-
-
-def _optional_path(value: str | None) -> Path | None:
-    """A path the YAML may leave null or empty (both: none)."""
-    return Path(value) if value else None
-
-
-def _allowed(key: str, values: tuple, allowed: tuple, empty_ok: bool = False) -> None:
-    if not values and not empty_ok:
-        raise EvalConfigError(f"{key} is empty; allowed: {', '.join(allowed)}")
-    bad = [v for v in values if v not in allowed]
-    if bad:
-        raise EvalConfigError(
-            f"{key}: unknown {', '.join(map(repr, bad))}; allowed: {', '.join(allowed)}"
-        )
-    if len(set(values)) != len(values):
-        raise EvalConfigError(f"{key} lists a name twice: {list(values)}")
-
-
-def _viewspaces(key: str, values: tuple[str, ...], empty_ok: bool = False) -> None:
-    """Refuse a viewspace that is neither a name :func:`~nbv.geometry.viewspace.is_named` knows
-    nor a file of ``x y z`` rows, and a list naming one twice."""
-    if not values and not empty_ok:
-        raise EvalConfigError(f"{key} is empty; allowed: {', '.join(VIEWSPACE_CHOICES)}")
-    bad = [v for v in values if not is_named(v) and not Path(v).is_file()]
-    if bad:
-        raise EvalConfigError(
-            f"{key}: unknown {', '.join(map(repr, bad))}; allowed: {', '.join(VIEWSPACE_CHOICES)}"
-        )
-    if len(set(values)) != len(values):
-        raise EvalConfigError(f"{key} lists a name twice: {list(values)}")
-
-
-def _group_ranges(obj: Any, group: str) -> None:
-    """:func:`check_ranges` of a nested group, its message naming the key path (``prepare.``):
-    the same message whether the settings came from a config or from code."""
-    try:
-        check_ranges(obj)
-    except ConfigError as err:
-        raise EvalConfigError(f"{group}.{err}") from None
 
 
 @dataclass(frozen=True)
@@ -139,18 +91,14 @@ class PrepareSettings:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        _allowed("prepare.backend", (self.backend,), BACKENDS)
-        _group_ranges(self, "prepare")
+        check_allowed("prepare.backend", (self.backend,), BACKENDS)
+        group_ranges(self, "prepare")
         c = self.camera
         if c != Intrinsics.centred(c.width, c.height, c.fx):
             # The cache's identity holds width, height and focal: the camera conf/camera/ makes.
             raise EvalConfigError(
                 f"prepare.camera={c}: must have fx = fy and the principal point at the centre"
             )
-
-
-def _distinct_positive(values: tuple[float, ...]) -> bool:
-    return all(x > 0 for x in values) and len(set(values)) == len(values)
 
 
 @dataclass(frozen=True)
@@ -183,14 +131,14 @@ class DisturbSettings:
     start_views: tuple[int, ...] | None = (1, 10, 24)
     radius: float = setting(0.5, allows=positive("distance"))
     noise: tuple[float, ...] = setting(
-        (0.002, 0.005, 0.01), check=_distinct_positive,
+        (0.002, 0.005, 0.01), check=distinct_positive,
         allowed="distinct positive standard deviations",
     )  # fmt: skip
 
     def __post_init__(self) -> None:
-        _allowed("disturb.checks", self.checks, CHECKS, empty_ok=True)
-        _viewspaces("disturb.viewspace", self.viewspaces, empty_ok=True)
-        _group_ranges(self, "disturb")
+        check_allowed("disturb.checks", self.checks, CHECKS, empty_ok=True)
+        check_viewspaces("disturb.viewspace", self.viewspaces, empty_ok=True)
+        group_ranges(self, "disturb")
 
 
 @dataclass(frozen=True)
@@ -272,7 +220,7 @@ class EvalSettings:
     methods: tuple[str, ...] = names_setting("methods", DEFAULT_METHODS)
     datasets: tuple[str, ...] = names_setting("dataset", (), key="dataset", config_default=None)
     data_dir: Path = Path("data/generated/synthetic")
-    mesh_dir: Path | None = setting(None, convert=_optional_path)
+    mesh_dir: Path | None = setting(None, convert=optional_path)
     limit: int | None = setting(None, allows=or_null(at_least(1)))
     prepare: PrepareSettings = setting(factory=PrepareSettings)
     viewspaces: tuple[str, ...] = names_setting("viewspace", VIEWSPACES, key="viewspace")
@@ -283,7 +231,7 @@ class EvalSettings:
     checkpoints: dict[str, str] = setting(factory=dict)
     hull: HullSettings = setting(factory=HullSettings)
     ig: VolumetricSettings = setting(factory=VolumetricSettings)
-    ig_scorer: Path | None = setting(None, convert=_optional_path)
+    ig_scorer: Path | None = setting(None, convert=optional_path)
     disturb: DisturbSettings = setting(factory=DisturbSettings)
     random_repeats: int = setting(10, allows=at_least(1))
     seed: int = 0
@@ -315,9 +263,9 @@ class EvalSettings:
         if not self.datasets:  # null: derived from mesh_dir
             derived = ("unseen", "meshes") if self.mesh_dir else ("unseen",)
             object.__setattr__(self, "datasets", derived)
-        _allowed("methods", self.methods, tuple(METHODS))
-        _allowed("dataset", self.datasets, DATASETS)
-        _viewspaces("viewspace", self.viewspaces)
+        check_allowed("methods", self.methods, tuple(METHODS))
+        check_allowed("dataset", self.datasets, DATASETS)
+        check_viewspaces("viewspace", self.viewspaces)
         missing = sorted(set(networks_of(self.methods)) - set(self.checkpoints))
         if missing:
             raise EvalConfigError(
