@@ -15,7 +15,7 @@ import nbv.dataset
 from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned_network import ConditionedPolicy
-from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, run_episode
+from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, reads_ground_truth, run_episode
 from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
@@ -320,41 +320,45 @@ def test_network_decides_on_the_shown_state_but_masks_the_visited_views(model, n
     assert policy.decide(cloud, visited) not in (1, 2)
 
 
-def _blinded(model, viewspace: str, visited: np.ndarray, rng: np.random.Generator):
-    """``model`` as a robot knows it: random ground truth, no coverage bits, and random points
-    and hull vertices for every view not yet captured (each view keeps its point count)."""
-    view = model.views[viewspace]
-    points, hulls = view.points.copy(), view.hull_points.copy()
+def _blinded(views, visited: np.ndarray, rng: np.random.Generator):
+    """``views`` as a robot knows them: random points for every view not yet captured (each view
+    keeps its point count)."""
+    points = views.points.copy()
     for v in np.flatnonzero(~visited):
-        for arr, off in ((points, view.offsets), (hulls, view.hull_offsets)):
-            arr[off[v] : off[v + 1]] = rng.random((off[v + 1] - off[v], 3)) - 0.5
-    blind_view = dataclasses.replace(
-        view, points=points, hull_points=hulls, coverage=np.zeros_like(view.coverage)
-    )
-    return dataclasses.replace(
-        model,
-        gt_points=rng.random(model.gt_points.shape).astype(np.float32),
-        gt_hull_volume=0.0,
-        views={viewspace: blind_view},
-    )
+        points[views.offsets[v] : views.offsets[v + 1]] = (
+            rng.random((views.offsets[v + 1] - views.offsets[v], 3)) - 0.5
+        )
+    return dataclasses.replace(views, points=points)
 
 
 @dataclasses.dataclass
 class _SeesOnlyCaptured:
-    """Runs ``inner`` on a state whose model is blinded at every decision (see _blinded)."""
+    """Runs ``inner`` on a state whose uncaptured views are blinded at every decision (see
+    _blinded), and whose true gains, when the policy is given them, are random."""
 
     inner: object
     rng: np.random.Generator
 
+    @property
+    def reads_ground_truth(self) -> bool:
+        return reads_ground_truth(self.inner)
+
     def __call__(self, state):
-        model = _blinded(state.model, state.viewspace, state.view_state, self.rng)
-        return self.inner(dataclasses.replace(state, model=model))
+        assert (state.true_gains is not None) == self.reads_ground_truth  # only the oracle's
+        views = _blinded(state.views, state.view_state, self.rng)
+        true_gains = None
+        if state.true_gains is not None:
+
+            def true_gains(score, view_state):
+                return self.rng.random(len(view_state))
+
+        return self.inner(dataclasses.replace(state, views=views, true_gains=true_gains))
 
 
 @pytest.mark.slow
 def test_policies_other_than_the_oracle_read_only_the_captured_views(model, networks):
-    # A policy that read the ground truth, the coverage bits, or the points or hulls of a view
-    # it has not captured would pick otherwise on the blinded model.
+    # A policy is given no ground truth (the state has none) and would pick otherwise on the
+    # blinded views if it read the points of a view it has not captured.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
     assert len(names) == 19
     for name in names:
@@ -363,7 +367,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
             blind = _SeesOnlyCaptured(all_policies(networks, 1)[name], np.random.default_rng(5))
             b = run_episode(model, "original", start, blind)
             assert a.views == b.views, name
-    # The blinding bites: the oracle, which reads the ground truth, picks otherwise.
+    # The blinding bites: the oracle, given random true gains, picks otherwise.
     oracle = run_episode(model, "original", 27, all_policies(networks, 1)["oracle"])
     blind = _SeesOnlyCaptured(all_policies(networks, 1)["oracle"], np.random.default_rng(5))
     assert run_episode(model, "original", 27, blind).views != oracle.views

@@ -74,7 +74,7 @@ def _check_lmax(lmax: int) -> int:
 
 def _lmax_of(n: int) -> int:
     lmax = int(round(np.sqrt(n))) - 1
-    if n == 0 or (lmax + 1) ** 2 != n:
+    if n == 0 or n_coeffs(lmax) != n:
         raise ValueError(f"a coefficient vector has (lmax + 1)^2 entries, got {n}")
     return lmax
 
@@ -104,7 +104,7 @@ def _harmonics_rows(
     """
     n = x.shape[0]
     if out is None:
-        out = np.empty(((lmax + 1) ** 2, n))
+        out = np.empty((n_coeffs(lmax), n))
     out[0] = _INV_SQRT_4PI
     c_m, s_m = None, None  # sin^m(theta) cos(m phi), sin^m(theta) sin(m phi)
     # Normalised P_m^m(cos theta) / sin^m(theta) is a constant; sqrt(2) of the m > 0 harmonics

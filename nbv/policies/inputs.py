@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nbv.geometry.sph import signature
+from nbv.geometry.sph import n_coeffs, signature
 
 
 def record_time(timings: dict[str, list[float]], key: str, seconds: float) -> None:
@@ -34,4 +34,4 @@ def safe_signature(cloud: np.ndarray, lmax: int, notes: list[str]) -> np.ndarray
     if has_spread(cloud):
         return signature(cloud, lmax)
     notes.append(NO_SPREAD + "; zeros used")
-    return np.zeros((4 * (lmax + 1) ** 2, 3), dtype=np.float32)
+    return np.zeros((4 * n_coeffs(lmax), 3), dtype=np.float32)
