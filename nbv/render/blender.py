@@ -13,7 +13,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Callable, Generator, Iterable, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -402,6 +402,90 @@ class _Process:
         self.close_input()
 
 
+class _Feed:
+    """The jobs of one stream: staged from ``source`` as its processes need them, those a process
+    died holding first; ``failed`` once a job of the stream failed (its log is then kept)."""
+
+    def __init__(self, source: _JobSource, run_dir: Path, chunk: int) -> None:
+        self.source, self.run_dir, self.chunk = source, run_dir, chunk
+        self.retry: list[StagedJob] = []  # given to a process that died before rendering them
+        self.exhausted = False
+        self.failed = False
+
+    def next_job(self) -> Generator[tuple[str, RenderError], None, StagedJob | None]:
+        """Yields the jobs that cannot be rendered; returns the next staged one, or None."""
+        if self.retry:
+            return self.retry.pop(0)
+        while not self.exhausted:
+            taken = self.source.take()
+            if taken is None:
+                self.exhausted = True
+                break
+            index, key, job, why = taken
+            if job is not None:
+                try:
+                    return stage_job(job, index, self.run_dir)
+                except (ValueError, TypeError, AttributeError) as exc:
+                    why = str(exc)
+            yield key, RenderError(f"{key!r}: {why}")
+        return None
+
+    def fill(self, process: _Process) -> Generator[tuple[str, RenderError], None, None]:
+        """Give the process jobs up to :data:`_AHEAD` beyond the one it renders; close its input
+        when there are no more, or when it has had ``chunk``."""
+        chunk = self.chunk
+        while len(process.given) <= _AHEAD and not (chunk and process.count >= chunk):
+            job = yield from self.next_job()
+            if job is None:
+                break
+            process.give(job)
+        if (chunk and process.count >= chunk) or (self.exhausted and not self.retry):
+            process.close_input()
+
+
+def _results(
+    process: _Process, log: Path, feed: _Feed
+) -> Generator[tuple[str, np.ndarray | RenderError], None, str | None]:
+    """The jobs a process renders, as it reports each (its other output goes to ``log``), the
+    process fed as it goes; returns the reason Blender could not start, or None."""
+    fatal = None
+    assert process.popen.stdout is not None
+    for line in process.popen.stdout:
+        if line.startswith("NBV-FATAL "):
+            fatal = line[len("NBV-FATAL ") :].strip()
+            continue
+        if not line.startswith(("NBV-DONE ", "NBV-FAIL ")) or not process.given:
+            with open(log, "a") as log_file:
+                log_file.write(line)
+            continue
+        job = process.given[0]
+        tag, rest = line.rstrip("\n").split(" ", 1)
+        if rest != job.key and not rest.startswith(job.key + " "):
+            raise RenderError(f"Blender reported {rest!r} while {job.key!r} was expected")
+        if tag == "NBV-DONE":
+            result: np.ndarray | RenderError = np.load(job.out)
+        else:
+            feed.failed = True
+            result = RenderError(f"{job.key!r}: {rest[len(job.key) :].strip()}")
+        job.remove()
+        process.given.pop(0)
+        yield job.key, result
+        yield from feed.fill(process)
+    return fatal
+
+
+def _clean_run_dir(run_dir: Path, log: Path, failed: bool) -> None:
+    """Remove a stream's folder, or everything in it but the log when a job failed."""
+    if not failed:
+        shutil.rmtree(run_dir, ignore_errors=True)
+        return
+    for path in run_dir.iterdir():
+        if path.is_dir():
+            shutil.rmtree(path, ignore_errors=True)
+        elif path != log:
+            path.unlink()
+
+
 def _render_blender(
     source: _JobSource,
     intrinsics: Intrinsics,
@@ -415,42 +499,9 @@ def _render_blender(
     """One stream: Blender processes, one after another, rendering jobs taken from ``source``."""
     run_dir = Path(tempfile.mkdtemp(prefix="blender-", dir=workdir))
     log = run_dir / "blender.log"
-    failed = False
+    feed = _Feed(source, run_dir, chunk)
     process: _Process | None = None
-    retry: list[StagedJob] = []  # given to a process that died before rendering them
     scratch: Path | None = None
-    exhausted = False
-
-    def next_job() -> Generator[tuple[str, RenderError], None, StagedJob | None]:
-        """Yields the jobs that cannot be rendered; returns the next staged one, or None."""
-        nonlocal exhausted
-        if retry:
-            return retry.pop(0)
-        while not exhausted:
-            taken = source.take()
-            if taken is None:
-                exhausted = True
-                break
-            index, key, job, why = taken
-            if job is not None:
-                try:
-                    return stage_job(job, index, run_dir)
-                except (ValueError, TypeError, AttributeError) as exc:
-                    why = str(exc)
-            yield key, RenderError(f"{key!r}: {why}")
-        return None
-
-    def fill(process: _Process) -> Generator[tuple[str, RenderError], None, None]:
-        """Give the process jobs up to :data:`_AHEAD` beyond the one it renders; close its input
-        when there are no more, or when it has had ``chunk``."""
-        while len(process.given) <= _AHEAD and not (chunk and process.count >= chunk):
-            job = yield from next_job()
-            if job is None:
-                break
-            process.give(job)
-        if (chunk and process.count >= chunk) or (exhausted and not retry):
-            process.close_input()
-
     try:
         scratch = scratch_folder(run_dir, 16 * intrinsics.width * intrinsics.height)
         spec = job_spec(intrinsics, threads, device) | {"scratch": str(scratch), "jobs": "stdin"}
@@ -458,46 +509,24 @@ def _render_blender(
         job_file.write_text(json.dumps(spec))
         run = 0
         while True:
-            first = yield from next_job()
+            first = yield from feed.next_job()
             if first is None:
                 break
             with open(log, "a") as log_file:
                 log_file.write(f"=== run {run} ===\n")
             process = _Process(blender_command(blender, job_file), log, cpus)
             process.give(first)
-            yield from fill(process)
-            fatal = None
-            assert process.popen.stdout is not None
-            for line in process.popen.stdout:
-                if line.startswith("NBV-FATAL "):
-                    fatal = line[len("NBV-FATAL ") :].strip()
-                    continue
-                if not line.startswith(("NBV-DONE ", "NBV-FAIL ")) or not process.given:
-                    with open(log, "a") as log_file:
-                        log_file.write(line)
-                    continue
-                job = process.given[0]
-                tag, rest = line.rstrip("\n").split(" ", 1)
-                if rest != job.key and not rest.startswith(job.key + " "):
-                    raise RenderError(f"Blender reported {rest!r} while {job.key!r} was expected")
-                if tag == "NBV-DONE":
-                    result: np.ndarray | RenderError = np.load(job.out)
-                else:
-                    failed = True
-                    result = RenderError(f"{job.key!r}: {rest[len(job.key) :].strip()}")
-                job.remove()
-                process.given.pop(0)
-                yield job.key, result
-                yield from fill(process)
+            yield from feed.fill(process)
+            fatal = yield from _results(process, log, feed)
             status = process.popen.wait()
             process.close_input()
             left, offset = process.given, process.offset
             process = None
             if not left:
                 continue
-            failed = True
+            feed.failed = True
             if fatal is not None:
-                yield from _fail_all(left, retry, next_job, f"Blender could not start: {fatal}")
+                yield from _fail_all(left, feed, f"Blender could not start: {fatal}")
                 break
             job = left.pop(0)
             job.remove()
@@ -508,34 +537,25 @@ def _render_blender(
                     f"log {log}, last lines:\n{_log_tail(log, offset)}"
                 ),
             )
-            retry[:0] = left
+            feed.retry[:0] = left
             run += 1
     finally:
         if process is not None:
             process.kill()
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)
-        if failed:  # keep only the log
-            for path in run_dir.iterdir():
-                if path.is_dir():
-                    shutil.rmtree(path, ignore_errors=True)
-                elif path != log:
-                    path.unlink()
-        else:
-            shutil.rmtree(run_dir, ignore_errors=True)
+        _clean_run_dir(run_dir, log, feed.failed)
 
 
-def _fail_all(
-    given: list[StagedJob], retry: list[StagedJob], next_job: Callable, why: str
-) -> Iterator[tuple[str, RenderError]]:
+def _fail_all(given: list[StagedJob], feed: _Feed, why: str) -> Iterator[tuple[str, RenderError]]:
     """Fail every job of a stream whose Blender cannot start: those it was given, then every
     other the stream can take (each process would fail the same way)."""
-    for job in given + retry:
+    for job in given + feed.retry:
         job.remove()
         yield job.key, RenderError(f"{job.key!r}: {why}")
-    retry.clear()
+    feed.retry.clear()
     while True:
-        job = yield from next_job()
+        job = yield from feed.next_job()
         if job is None:
             return
         job.remove()
