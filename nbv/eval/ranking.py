@@ -28,6 +28,7 @@ one-shot hull planners) are refused with the list of those that have them.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import logging
 from dataclasses import dataclass
@@ -102,10 +103,7 @@ def oracle_states(model: ModelData, viewspace: str, start: int, n_views: int) ->
     oracle = OraclePolicy("coverage")
     views = model.captured(viewspace)
     n = len(views.poses)
-
-    def true_gains(score: str, view_state: np.ndarray) -> np.ndarray:
-        return model.view_gains(viewspace, score, view_state)
-
+    true_gains = functools.partial(model.view_gains, viewspace)
     order, out = [start], []
     for _ in range(n_views - 1):
         state = np.zeros(n, dtype=bool)

@@ -11,7 +11,7 @@ known (:func:`nbv.scan.frame.object_frame`): it may come from the input.
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -105,11 +105,6 @@ class PlanSettings(ScanSettings):
                 f"captures_out={str(saved)!r}: exists and is not empty; saved captures go to a "
                 "new folder (another out_dir or captures_out)"
             )
-
-    @property
-    def scan(self) -> ScanSettings:
-        """The scan's settings alone (what a :class:`~nbv.scan.planner.Planner` takes)."""
-        return ScanSettings(**{f.name: getattr(self, f.name) for f in fields(ScanSettings)})
 
 
 class PlanEntry(Entry):

@@ -14,6 +14,7 @@ AUC (PC-NBV's definition) of a 10-view coverage curve: ``(cov_1 + ... + cov_9 + 
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -170,12 +171,7 @@ class RunningEpisode:
         n = len(views.poses)
         if not 0 <= start < n:
             raise ValueError(f"start view {start} is outside 0..{n - 1}")
-        true_gains = None
-        if ground_truth:
-
-            def true_gains(score: str, view_state: np.ndarray) -> np.ndarray:
-                return model.view_gains(viewspace, score, view_state)
-
+        true_gains = functools.partial(model.view_gains, viewspace) if ground_truth else None
         state = EpisodeState(views, np.zeros(n, dtype=bool), [int(start)], true_gains)
         state.view_state[start] = True
         return cls(model, viewspace, state, min(n_views, n))
