@@ -129,8 +129,9 @@ def test_split_half_reliability_on_gains_with_known_order():
 
 
 def test_summary_exact_on_hand_made_records():
-    def record(model, cat, a, s, hit, captured=1, truth=None):
-        return {"model": model, "category": cat, "spearman": {"a": a, "spread": s},
+    def record(model, cat, a, s, hit, captured=1, truth=None, viewspace="original"):
+        return {"model": model, "category": cat, "viewspace": viewspace,
+                "spearman": {"a": a, "spread": s},
                 "hit": {"a": hit, "spread": False}, "captured": captured,
                 "truth_reliability": truth}  # fmt: skip
 
@@ -152,6 +153,18 @@ def test_summary_exact_on_hand_made_records():
     assert truth["states"] == 3 and truth["mean"].mean == pytest.approx(0.6)
     assert truth["by_captured"] == pytest.approx({1: 0.8, 2: 0.2})
     assert reliability_summary([{**r, "truth_reliability": None} for r in records]) is None
+    # A second viewspace: each viewspace's rows are the summary of its states alone.
+    permuted = [record("m1", "x", -0.5, 0.5, False, 1, None, "permuted"),
+                record("m2", "y", 0.0, 0.25, False, 1, None, "permuted")]  # fmt: skip
+    both = {r["method"]: r for r in summary(records + permuted, ("spread", "a"))}
+    assert list(both["a"]["by_viewspace"]) == ["original", "permuted"]
+    for name in ("a", "spread"):
+        assert both[name]["by_viewspace"]["original"] == rows[name]["spearman"]
+    assert both["a"]["minus_spread_by_viewspace"]["original"] == rows["a"]["minus_spread"]
+    assert both["a"]["by_viewspace"]["permuted"].mean == pytest.approx(-0.25)
+    assert both["spread"]["by_viewspace"]["permuted"].mean == pytest.approx(0.375)
+    assert both["a"]["minus_spread_by_viewspace"]["permuted"].mean == pytest.approx(-0.625)
+    assert both["a"]["spearman"].mean == pytest.approx((0.5 + 1.0 + 0.0 - 0.5 + 0.0) / 5)
 
 
 def test_ranking_is_deterministic_and_leaves_out_states_without_ranks(tiny):
@@ -195,6 +208,8 @@ def test_the_command_writes_its_tables_and_refuses_methods_without_scores(tiny, 
     values = [s["spearman"]["vcnbv_map"] for s in states if s["spearman"]["vcnbv_map"] is not None]
     assert f"{np.mean(values):+.3f}" in table
     assert "Spearman by views captured, and the split-half reliability" in table
+    assert ("| method | original | original minus spread | permuted | permuted minus spread |"
+            in table)  # fmt: skip
     assert "| method | 1 | 2 | 3 | 4 | 5 | 6 | 7 | 8 | 9 |" in table
     first = [s["spearman"]["vcnbv_map"] for s in states if s["captured"] == 1]
     row = next(line for line in table.splitlines()

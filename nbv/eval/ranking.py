@@ -19,7 +19,8 @@ picks its view by. For each state:
   handful of points, and their order is then largely the sampling's.
 
 Written to ``out``: ``ranking.md`` (mean Spearman with a 95 % interval resampling the models;
-minus spread, paired on the same states; best-view hits; Spearman per category, or per model
+minus spread, paired on the same states, over both viewspaces and per viewspace; best-view
+hits; Spearman per category, or per model
 for a mesh folder; Spearman per number of captured views beside the truth's reliability) and
 ``ranking.json`` (every state's values). Methods without per-view scores (the oracle, the
 one-shot hull planners) are refused with the list of those that have them.
@@ -181,15 +182,19 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
 
 def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     """Per method: states ranked, mean Spearman (95 % interval resampling the models), minus
-    spread on the states both rank (paired, when spread is among ``methods``), best-view hits,
-    the mean Spearman per category (``by_group``; per model when there is one category, as
-    for a mesh folder; ``by`` says which) and per number of captured views (``by_captured``)."""
+    spread on the states both rank (paired, when spread is among ``methods``), both per
+    viewspace too (``by_viewspace``, ``minus_spread_by_viewspace``: viewspace -> interval),
+    best-view hits, the mean Spearman per category (``by_group``; per model when there is one
+    category, as for a mesh folder; ``by`` says which) and per number of captured views
+    (``by_captured``)."""
 
     def values(name: str) -> np.ndarray:
         return np.array([r["spearman"][name] for r in records], dtype=float)  # None -> NaN
 
     models = np.array([r["model"] for r in records])
     captured = np.array([r["captured"] for r in records])
+    viewspace = np.array([r["viewspace"] for r in records])
+    viewspaces = sorted(set(viewspace.tolist()))
     by = "category" if len({r["category"] for r in records}) > 1 else "model"
     groups = np.array([r[by] for r in records])
     base = values(SPREAD.name) if SPREAD.name in methods else None
@@ -202,10 +207,17 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
                "spearman": bootstrap_mean(rho[ok], models[ok]),
                "hits": float(np.mean([r["hit"][name] for r in records])), "by": by,
                "by_group": {g: _mean(rho[groups == g]) for g in names},
-               "by_captured": _by_captured(rho, captured)}  # fmt: skip
+               "by_captured": _by_captured(rho, captured),
+               "by_viewspace": {v: bootstrap_mean(rho[ok & (viewspace == v)],
+                                                  models[ok & (viewspace == v)])
+                                for v in viewspaces}}  # fmt: skip
         if base is not None and name != SPREAD.name:
             both = ok & np.isfinite(base)
             row["minus_spread"] = bootstrap_mean(rho[both] - base[both], models[both])
+            row["minus_spread_by_viewspace"] = {
+                v: bootstrap_mean((rho - base)[both & (viewspace == v)],
+                                  models[both & (viewspace == v)])
+                for v in viewspaces}  # fmt: skip
         rows.append(row)
     return rows
 
@@ -248,6 +260,13 @@ def write(out: Path, records: list[dict], rows: list[dict], truth: dict | None) 
           r["minus_spread"].text() if "minus_spread" in r else "", f"{r['hits']:.3f}"]
          for r in rows],
     )  # fmt: skip
+    lines += [
+        "",
+        "Spearman by viewspace (95 % intervals resampling the models; a network trained "
+        "on one viewspace's view order meets a permuted one only through the geometry):",
+        "",
+        *_viewspace_table(rows),
+    ]
     lines += ["", f"Spearman by {rows[0]['by']}:", "",
               *md_table(["method", *groups],
                         [[r["method"], *(f"{r['by_group'][g]:.2f}" for g in groups)]
@@ -262,6 +281,25 @@ def write(out: Path, records: list[dict], rows: list[dict], truth: dict | None) 
                  "scorer's Spearman can hardly exceed its square root")  # fmt: skip
     lines += ["", f"{text}:", "", *md_table(["method", *map(str, steps)], by_step)]
     (out / "ranking.md").write_text("\n".join([*lines, ""]))
+
+
+def _viewspace_table(rows: list[dict]) -> list[str]:
+    """The markdown lines of each method's Spearman per viewspace, and minus spread's where
+    :func:`summary` paired it."""
+    spaces = list(rows[0]["by_viewspace"])
+    paired = any("minus_spread_by_viewspace" in r for r in rows)
+    header = ["method", *(c for v in spaces
+                          for c in (v, f"{v} minus spread") if paired or c == v)]  # fmt: skip
+    body = []
+    for r in rows:
+        cells = [r["method"]]
+        for v in spaces:
+            cells.append(r["by_viewspace"][v].text())
+            if paired:
+                minus = r.get("minus_spread_by_viewspace")
+                cells.append(minus[v].text() if minus else "")
+        body.append(cells)
+    return md_table(header, body)
 
 
 @dataclass(frozen=True)
@@ -323,7 +361,9 @@ def finish(started: tuple[RankingSettings, list[dict]]) -> None:
     rows = summary(records, s.methods)
     write(s.out, records, rows, reliability_summary(records))
     for r in rows:
-        log.info("%s: Spearman %s over %d states", r["method"], r["spearman"].text(), r["states"])
+        per = ", ".join(f"{v} {i.text()}" for v, i in r["by_viewspace"].items())
+        log.info("%s: Spearman %s over %d states (%s)", r["method"], r["spearman"].text(),
+                 r["states"], per)  # fmt: skip
 
 
 main = command(PROG, "ranking", start, finish)
