@@ -165,6 +165,8 @@ def test_summary_exact_on_hand_made_records():
     assert both["spread"]["by_viewspace"]["permuted"].mean == pytest.approx(0.375)
     assert both["a"]["minus_spread_by_viewspace"]["permuted"].mean == pytest.approx(-0.625)
     assert both["a"]["spearman"].mean == pytest.approx((0.5 + 1.0 + 0.0 - 0.5 + 0.0) / 5)
+    assert both["a"]["by_captured_viewspace"] == {"original": {1: 0.75, 2: 0.0},
+                                                  "permuted": {1: -0.25}}  # fmt: skip
 
 
 def test_ranking_is_deterministic_and_leaves_out_states_without_ranks(tiny):
@@ -216,3 +218,7 @@ def test_the_command_writes_its_tables_and_refuses_methods_without_scores(tiny, 
                if line.startswith("| vcnbv_map |") and line.count("|") == 11)  # fmt: skip
     assert row.split(" | ")[1] == f"{np.nanmean(np.array(first, dtype=float)):.2f}"
     assert "| true gains' split-half reliability |" in table
+    permuted = [s["spearman"]["vcnbv_map"] for s in states
+                if s["captured"] == 1 and s["viewspace"] == "permuted"]  # fmt: skip
+    row = next(line for line in table.splitlines() if line.startswith("| vcnbv_map, permuted |"))
+    assert row.split(" | ")[1] == f"{np.nanmean(np.array(permuted, dtype=float)):.2f}"

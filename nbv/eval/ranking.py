@@ -186,7 +186,7 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     viewspace too (``by_viewspace``, ``minus_spread_by_viewspace``: viewspace -> interval),
     best-view hits, the mean Spearman per category (``by_group``; per model when there is one
     category, as for a mesh folder; ``by`` says which) and per number of captured views
-    (``by_captured``)."""
+    (``by_captured``; ``by_captured_viewspace``: viewspace -> those means on its states)."""
 
     def values(name: str) -> np.ndarray:
         return np.array([r["spearman"][name] for r in records], dtype=float)  # None -> NaN
@@ -208,6 +208,9 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
                "hits": float(np.mean([r["hit"][name] for r in records])), "by": by,
                "by_group": {g: _mean(rho[groups == g]) for g in names},
                "by_captured": _by_captured(rho, captured),
+               "by_captured_viewspace": {v: _by_captured(rho[viewspace == v],
+                                                         captured[viewspace == v])
+                                         for v in viewspaces},
                "by_viewspace": {v: bootstrap_mean(rho[ok & (viewspace == v)],
                                                   models[ok & (viewspace == v)])
                                 for v in viewspaces}}  # fmt: skip
@@ -271,7 +274,12 @@ def write(out: Path, records: list[dict], rows: list[dict], truth: dict | None) 
               *md_table(["method", *groups],
                         [[r["method"], *(f"{r['by_group'][g]:.2f}" for g in groups)]
                          for r in rows])]  # fmt: skip
-    by_step = [[r["method"], *(f"{r['by_captured'][c]:.2f}" for c in steps)] for r in rows]
+    by_step = []
+    for r in rows:
+        per = r["by_captured_viewspace"]
+        split = [(f"{r['method']}, {v}", per[v]) for v in per] if len(per) > 1 else []
+        for label, means in [(r["method"], r["by_captured"]), *split]:
+            by_step.append([label, *(f"{means.get(c, np.nan):.2f}" for c in steps)])
     text = "Spearman by views captured"
     if truth is not None:
         cells = [f"{truth['by_captured'].get(c, np.nan):.2f}" for c in steps]
