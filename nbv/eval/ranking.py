@@ -62,7 +62,7 @@ from nbv.setcover.settings import HullSettings
 from nbv.utils.fields import at_least, or_null
 from nbv.utils.markdown import md_table
 from nbv.utils.ranking import best_view_hit, spearman_per_sample, split_half_reliability
-from nbv.utils.stats import bootstrap_mean
+from nbv.utils.stats import Interval, bootstrap_mean
 
 PROG = "nbv.eval.ranking"
 log = logging.getLogger("nbv.eval.ranking")
@@ -192,9 +192,14 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
         return np.array([r["spearman"][name] for r in records], dtype=float)  # None -> NaN
 
     models = np.array([r["model"] for r in records])
+
+    def interval(x: np.ndarray, keep: np.ndarray) -> Interval:
+        """The mean of ``x`` over the states ``keep`` marks, resampling their models."""
+        return bootstrap_mean(x[keep], models[keep])
+
     captured = np.array([r["captured"] for r in records])
     viewspace = np.array([r["viewspace"] for r in records])
-    viewspaces = sorted(set(viewspace.tolist()))
+    in_space = {v: viewspace == v for v in sorted(set(viewspace.tolist()))}
     by = "category" if len({r["category"] for r in records}) > 1 else "model"
     groups = np.array([r[by] for r in records])
     base = values(SPREAD.name) if SPREAD.name in methods else None
@@ -203,24 +208,19 @@ def summary(records: list[dict], methods: tuple[str, ...]) -> list[dict]:
     for name in methods:
         rho = values(name)
         ok = np.isfinite(rho)
-        row = {"method": name, "states": int(ok.sum()),
-               "spearman": bootstrap_mean(rho[ok], models[ok]),
+        row = {"method": name, "states": int(ok.sum()), "spearman": interval(rho, ok),
                "hits": float(np.mean([r["hit"][name] for r in records])), "by": by,
                "by_group": {g: _mean(rho[groups == g]) for g in names},
                "by_captured": _by_captured(rho, captured),
-               "by_captured_viewspace": {v: _by_captured(rho[viewspace == v],
-                                                         captured[viewspace == v])
-                                         for v in viewspaces},
-               "by_viewspace": {v: bootstrap_mean(rho[ok & (viewspace == v)],
-                                                  models[ok & (viewspace == v)])
-                                for v in viewspaces}}  # fmt: skip
+               "by_captured_viewspace": {v: _by_captured(rho[m], captured[m])
+                                         for v, m in in_space.items()},
+               "by_viewspace": {v: interval(rho, ok & m) for v, m in in_space.items()}}  # fmt: skip
         if base is not None and name != SPREAD.name:
             both = ok & np.isfinite(base)
-            row["minus_spread"] = bootstrap_mean(rho[both] - base[both], models[both])
+            row["minus_spread"] = interval(rho - base, both)
             row["minus_spread_by_viewspace"] = {
-                v: bootstrap_mean((rho - base)[both & (viewspace == v)],
-                                  models[both & (viewspace == v)])
-                for v in viewspaces}  # fmt: skip
+                v: interval(rho - base, both & m) for v, m in in_space.items()
+            }
         rows.append(row)
     return rows
 
@@ -296,8 +296,9 @@ def _viewspace_table(rows: list[dict]) -> list[str]:
     :func:`summary` paired it."""
     spaces = list(rows[0]["by_viewspace"])
     paired = any("minus_spread_by_viewspace" in r for r in rows)
-    header = ["method", *(c for v in spaces
-                          for c in (v, f"{v} minus spread") if paired or c == v)]  # fmt: skip
+    header = ["method"]
+    for v in spaces:
+        header += [v, f"{v} minus spread"] if paired else [v]
     body = []
     for r in rows:
         cells = [r["method"]]
