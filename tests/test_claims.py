@@ -58,6 +58,18 @@ def test_each_claim_follows_its_interval_and_a_failure_says_why() -> None:
     assert rows["3"][3].endswith("leaves +-0.02")
     # Claim 4 needs the disturbance checks, which these records lack.
     assert rows["4"][3] == "n/a (not measured)"
+    assert "matched" not in rows["2"][2]
+
+
+def test_claim_2_adds_the_matched_networks_kept_advantage_but_not_to_its_verdict() -> None:
+    base = {vs: dict(methods) for vs, methods in BASE.items()}
+    base["original"]["pcnbv_sph_matched"] = 0.73  # the plain network's, on its own viewspace
+    base["permuted"]["pcnbv_sph_matched"] = 0.70  # keeps 0.10 of its 0.13 over random
+    rows = _rows(_records(base))
+    # 0.10 - 0.5 x 0.13 = +0.035 (the episodes' offsets cancel in the paired differences).
+    text = rows["2"][2].split("; pcnbv_sph_matched (views matched by direction) ")[1]
+    assert text.startswith("+0.035 [")
+    assert rows["2"][3] == "**holds**"
 
 
 def test_a_failing_claim_names_each_method_whose_interval_fails() -> None:

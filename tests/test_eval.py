@@ -496,7 +496,7 @@ def test_default_config_composes_to_the_documented_defaults():
         cfg = compose("eval", overrides=["run=x"])
     s = ENTRY.build(cfg)
     assert s.methods == DEFAULT_METHODS and s.datasets == ("unseen",)
-    assert set(METHODS_BY_NAME) - set(s.methods) == {"oracle_vig", "pcnbv_vig"}
+    assert set(METHODS_BY_NAME) - set(s.methods) == {"oracle_vig", "pcnbv_vig", "pcnbv_matched"}
     assert s.viewspaces == ("original", "permuted") and s.start_views == (
         1,
         3,

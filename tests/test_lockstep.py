@@ -85,6 +85,24 @@ def test_every_network_picks_the_views_of_one_at_a_time_inference(model, shipped
         assert len(a.times) == len(b.times) == 9
 
 
+@pytest.mark.parametrize(("method", "plain"), [("pcnbv_sph_matched", "pcnbv_sph"),
+                                               ("pcnbv_matched", "pcnbv")])  # fmt: skip
+@pytest.mark.slow
+def test_a_matched_network_is_the_plain_one_on_its_viewspace(model, shipped_fp32, method, plain):
+    """Matched by direction, a network decides as alone on both viewspaces, and exactly as the
+    plain network on the viewspace it is trained on (the map is the identity there)."""
+    batched = run_lockstep(model, _policies(shipped_fp32, method))
+    single = [run_episode(model, s.viewspace, s.start, s.policy)
+              for s in _policies(shipped_fp32, method)]  # fmt: skip
+    assert [e.views for e in batched] == [e.views for e in single]
+    plain_runs = run_lockstep(model, _policies(shipped_fp32, plain))
+    on_original = [i for i, s in enumerate(_policies(shipped_fp32, plain))
+                   if s.viewspace == "original"]  # fmt: skip
+    assert [batched[i].views for i in on_original] == [plain_runs[i].views for i in on_original]
+    off = [i for i in range(len(batched)) if i not in on_original]
+    assert [batched[i].views for i in off] != [plain_runs[i].views for i in off]
+
+
 @pytest.mark.parametrize(
     ("check", "sigma"),
     [("random_cloud", 0.0), ("permuted_state", 0.0), ("position_noise", 0.005)],

@@ -12,6 +12,7 @@ from datagen import SMALL_CAMERA, VOLUMETRIC, make_tiny_dataset
 from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
+from nbv.geometry.viewspace import get_viewspace
 from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned_network import ConditionedPolicy
@@ -22,6 +23,7 @@ from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS, SHIPPED_SCORER, MethodContext
 from nbv.policies.two_stage import NetworkThenHullPolicy
+from nbv.policies.view_matching import MatchedNetworkPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.setcover.hull_sampling import convex_hull
 from nbv.setcover.oneshot import plan as sco_plan
@@ -66,6 +68,12 @@ def all_policies(networks, seed: int = 0) -> dict:
         "pcnbv_sph": networks["signature"].fresh(),
         "pcnbv_vig": networks["points"].fresh(),
         "pcnbv_sph_vig": networks["signature"].fresh(),
+        "pcnbv_matched": MatchedNetworkPolicy(
+            networks["points"].fresh(), get_viewspace("original")
+        ),
+        "pcnbv_sph_matched": MatchedNetworkPolicy(
+            networks["signature"].fresh(), get_viewspace("original")
+        ),
         "vcnbv": networks["directions"].fresh(),
         "vcnbv_map": networks["directions_map"].fresh(
             InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
@@ -360,7 +368,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy is given no ground truth (the state has none) and would pick otherwise on the
     # blinded views if it read the points of a view it has not captured.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 19
+    assert len(names) == 21
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])

@@ -121,9 +121,9 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
 def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
         "random", "spread", "oracle", "oracle_vig", "pcnbv", "pcnbv_sph", "pcnbv_vig",
-        "pcnbv_sph_vig", "vcnbv", "vcnbv_map", "hull_sco", "hull_sco_sph", "hull_sco_probes",
-        "hull_sco_replan", "vig_hull_sco", "vig_hull_sco_sph", "ig", "hull_ig", "ig_learned",
-        "ig_area_factor", "ig_proximity",
+        "pcnbv_sph_vig", "pcnbv_matched", "pcnbv_sph_matched", "vcnbv", "vcnbv_map", "hull_sco",
+        "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco", "vig_hull_sco_sph",
+        "ig", "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
     ]  # fmt: skip
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "pcnbv_vig": "points",
                               "pcnbv_sph_vig": "signature", "vcnbv": "directions",
@@ -132,9 +132,12 @@ def test_derived_lists_follow_the_entries():
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco",
         "vig_hull_sco_sph", "ig", "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
     )  # fmt: skip
-    # Every method runs by default but the point network trained on VIG and the VIG oracle (the
-    # costliest decisions of the default run after pcnbv's, and as costly).
-    assert DEFAULT_METHODS == tuple(m for m in METHODS if m not in ("oracle_vig", "pcnbv_vig"))
+    # Every method runs by default but the point network trained on VIG, the VIG oracle and
+    # PCNBV matched by direction (the costliest decisions of the default run after pcnbv's, and
+    # as costly).
+    assert DEFAULT_METHODS == tuple(
+        m for m in METHODS if m not in ("oracle_vig", "pcnbv_vig", "pcnbv_matched")
+    )
     # The methods made to raise VIG; the coverage baselines leave the VIG oracle out.
     assert [m.name for m in METHODS.values() if m.score == "vig"] == [
         "oracle_vig",
@@ -146,7 +149,13 @@ def test_derived_lists_follow_the_entries():
     assert BASELINES == ("random", "spread", "oracle")
     # A method led by another's network names a network method; the networks each run.
     led = {m.name: m.network for m in METHODS.values() if m.network is not None}
-    assert led == {"vig_hull_sco": "pcnbv_sph_vig", "vig_hull_sco_sph": "pcnbv_sph_vig"}
+    assert led == {
+        "pcnbv_matched": "pcnbv",
+        "pcnbv_sph_matched": "pcnbv_sph",
+        "vig_hull_sco": "pcnbv_sph_vig",
+        "vig_hull_sco_sph": "pcnbv_sph_vig",
+    }
+    assert [m.name for m in METHODS.values() if m.matched] == ["pcnbv_matched", "pcnbv_sph_matched"]
     assert networks_of(
         ["random", "vig_hull_sco", "pcnbv", "pcnbv_sph_vig", "vig_hull_sco_sph"]
     ) == ("pcnbv_sph_vig", "pcnbv")

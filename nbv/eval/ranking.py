@@ -71,8 +71,9 @@ log = logging.getLogger("nbv.eval.ranking")
 def _ranked() -> tuple[str, ...]:
     """The registry's methods whose policies score every view (``view_scores``), in its order.
 
-    A network method's policy has them (both network policies define ``view_scores``); a
-    method led by another's network (a two-stage planner) has none; any other method's policy
+    A network method's policy has them (both network policies define ``view_scores``), and so
+    does a network matched by direction (``matched``); a method led by another's network (a
+    two-stage planner) has none; any other method's policy
     is built once, with default settings, to see.
     """
     ctx = MethodContext({}, HullSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS)
@@ -80,6 +81,7 @@ def _ranked() -> tuple[str, ...]:
         m.name
         for m in METHODS.values()
         if m.network_input is not None
+        or m.matched
         or (
             m.network is None
             and callable(getattr(m.build(ctx, np.random.default_rng(0)), "view_scores", None))
@@ -93,7 +95,7 @@ RANKED = _ranked()
 #: left out (their scores do not rank the unseen models' views); the methods without a network
 #: first, then the viewspace-conditioned networks.
 DEFAULT_METHODS = (
-    *(m for m in RANKED if m not in NETWORK_INPUTS),
+    *(m for m in RANKED if m not in NETWORK_INPUTS and not METHODS[m].matched),
     *(m for m in RANKED if NETWORK_INPUTS.get(m) == "directions"),
 )
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from nbv.assets.weights import SHIPPED_SCORER, shipped_weights
 from nbv.geometry.camera import Intrinsics
+from nbv.geometry.viewspace import original_viewspace
 from nbv.infogain.gain_scorer import GainScorer, load_scorer
 from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
@@ -29,6 +30,7 @@ from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.two_stage import NetworkThenHullPolicy
+from nbv.policies.view_matching import MatchedNetworkPolicy
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.setcover.settings import HullSettings
 
@@ -102,6 +104,8 @@ class Method:
             run (run it by naming it).
         paper_times: the paper's Table 1 row, stage -> seconds per 9-view reconstruction
             (FACTS.md), when the paper times this method.
+        matched: it runs ``network``'s network on the episode's viewspace by direction
+            (:mod:`nbv.policies.view_matching`): it scores every view as a network method does.
     """
 
     name: str
@@ -118,12 +122,15 @@ class Method:
     network: str | None = None
     score: str = "coverage"
     by_default: bool = True
+    matched: bool = False
 
     def __post_init__(self) -> None:
         if self.score not in SCORES:
             raise ValueError(f"method {self.name}: score={self.score!r}; allowed: {SCORES}")
         if self.network is not None and self.network_input is not None:
             raise ValueError(f"method {self.name}: a network method runs its own network")
+        if self.matched and self.network is None:
+            raise ValueError(f"method {self.name}: a matched method names the network it runs")
 
     @property
     def networks(self) -> tuple[str, ...]:
@@ -287,6 +294,35 @@ PCNBV_SPH_VIG = Method(
 )
 
 
+def _matched(name: str) -> Callable[[MethodContext, np.random.Generator], Policy]:
+    """The builder of network ``name`` run by direction on the episode's viewspace: a fresh copy
+    of its loaded network behind a map from PC-NBV's 33 views (the viewspace it is trained on)."""
+    return lambda ctx, rng: MatchedNetworkPolicy(_loaded(ctx, name), original_viewspace())
+
+
+PCNBV_MATCHED = Method(
+    "pcnbv_matched",
+    "PCNBV's network on the episode's viewspace, its view state and gains matched with its "
+    "training views by direction",
+    _matched("pcnbv"),
+    network="pcnbv",
+    matched=True,
+    style=("#08519c", ":"),
+    # Identical to pcnbv on the original viewspace; PCNBV's forwards are the costliest of the
+    # default run (issue 41): named only.
+    by_default=False,
+)
+PCNBV_SPH_MATCHED = Method(
+    "pcnbv_sph_matched",
+    "PCNBV-sph's network on the episode's viewspace, its view state and gains matched with its "
+    "training views by direction",
+    _matched("pcnbv_sph"),
+    network="pcnbv_sph",
+    matched=True,
+    style=("#0f7c86", ":"),
+)
+
+
 def _conditioned(name: str) -> Callable[[MethodContext, np.random.Generator], Policy]:
     """A fresh policy of the viewspace-conditioned checkpoint of method ``name``, with a fresh
     occupancy map of the run's ``ig`` settings (read only by a network of map features; an
@@ -447,6 +483,8 @@ METHODS: dict[str, Method] = {
         PCNBV_SPH,
         PCNBV_VIG,
         PCNBV_SPH_VIG,
+        PCNBV_MATCHED,
+        PCNBV_SPH_MATCHED,
         VCNBV,
         VCNBV_MAP,
         HULL_SCO,
@@ -477,7 +515,11 @@ GEOMETRIC: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.geometr
 BASELINES: tuple[str, ...] = tuple(
     m.name
     for m in METHODS.values()
-    if m.network_input is None and not m.geometric and not m.learned_score and m.score == "coverage"
+    if m.network_input is None
+    and m.network is None
+    and not m.geometric
+    and not m.learned_score
+    and m.score == "coverage"
 )
 #: The methods that rank with a learned score file.
 SCORED: tuple[str, ...] = tuple(m.name for m in METHODS.values() if m.learned_score)

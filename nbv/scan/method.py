@@ -39,8 +39,11 @@ def scan_context(settings: ScanSettings, camera: Intrinsics, n_views: int) -> Me
         camera: the planner's camera.
         n_views: the candidates' number (a PCNBV network has one output per view).
     """
+    # A network matched by direction runs on any number of candidates; any other has one
+    # output per view of its viewspace.
+    views = None if METHODS[settings.method].matched else n_views
     networks = {
-        name: load_network(settings, n_views, name) for name in networks_of([settings.method])
+        name: load_network(settings, views, name) for name in networks_of([settings.method])
     }
     return MethodContext(
         networks=networks,
@@ -53,7 +56,7 @@ def scan_context(settings: ScanSettings, camera: Intrinsics, n_views: int) -> Me
 
 
 def load_network(
-    settings: ScanSettings, n_views: int, name: str
+    settings: ScanSettings, n_views: int | None, name: str
 ) -> NetworkPolicy | ConditionedPolicy:
     """The network policy of the network method ``name`` the plan runs: ``checkpoint``, else
     the weights the package ships (:meth:`nbv.policies.registry.Method.weights`).
