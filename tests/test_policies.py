@@ -90,6 +90,10 @@ def all_policies(networks, seed: int = 0) -> dict:
         "vig_hull_sco": NetworkThenHullPolicy(
             networks["signature"].fresh(), HullSCOPolicy(rng(seed), **hull)
         ),
+        "vig_hull_sco_matched": NetworkThenHullPolicy(
+            MatchedNetworkPolicy(networks["signature"].fresh(), get_viewspace("original")),
+            HullSCOPolicy(rng(seed), **hull),
+        ),
         "vig_hull_sco_sph": NetworkThenHullPolicy(
             networks["signature"].fresh(),
             HullSCOPolicy(
@@ -368,7 +372,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy is given no ground truth (the state has none) and would pick otherwise on the
     # blinded views if it read the points of a view it has not captured.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 21
+    assert len(names) == 22
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])

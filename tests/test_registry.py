@@ -2,6 +2,7 @@
 lists that the evaluator, the checks and the report read are derived from it."""
 
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -36,10 +37,13 @@ from nbv.setcover.settings import HullSettings
 
 
 def _context(hull: HullSettings | None = None) -> MethodContext:
+    # Stand-ins for the networks' models: building a policy reads no weights (a PCNBV's number
+    # of outputs only, which its views matched by direction check).
+    pcnbv_model = SimpleNamespace(config=SimpleNamespace(n_views=33))
     networks = {
         name: ConditionedPolicy(model=object())
         if kind == "directions"
-        else NetworkPolicy(model=object(), input=kind)
+        else NetworkPolicy(model=pcnbv_model, input=kind)
         for name, kind in NETWORK_INPUTS.items()
     }
     return MethodContext(networks, hull or HullSettings(), SMALL_CAMERA, 0.02, 7)
@@ -122,7 +126,8 @@ def test_derived_lists_follow_the_entries():
     assert list(METHODS) == [
         "random", "spread", "oracle", "oracle_vig", "pcnbv", "pcnbv_sph", "pcnbv_vig",
         "pcnbv_sph_vig", "pcnbv_matched", "pcnbv_sph_matched", "vcnbv", "vcnbv_map", "hull_sco",
-        "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco", "vig_hull_sco_sph",
+        "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco",
+        "vig_hull_sco_matched", "vig_hull_sco_sph",
         "ig", "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
     ]  # fmt: skip
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "pcnbv_vig": "points",
@@ -130,7 +135,8 @@ def test_derived_lists_follow_the_entries():
                               "vcnbv_map": "directions"}  # fmt: skip
     assert GEOMETRIC == (
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco",
-        "vig_hull_sco_sph", "ig", "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
+        "vig_hull_sco_matched", "vig_hull_sco_sph", "ig", "hull_ig", "ig_learned", "ig_area_factor",
+        "ig_proximity",
     )  # fmt: skip
     # Every method runs by default but the point network trained on VIG, the VIG oracle and
     # PCNBV matched by direction (the costliest decisions of the default run after pcnbv's, and
@@ -144,6 +150,7 @@ def test_derived_lists_follow_the_entries():
         "pcnbv_vig",
         "pcnbv_sph_vig",
         "vig_hull_sco",
+        "vig_hull_sco_matched",
         "vig_hull_sco_sph",
     ]
     assert BASELINES == ("random", "spread", "oracle")
@@ -153,9 +160,14 @@ def test_derived_lists_follow_the_entries():
         "pcnbv_matched": "pcnbv",
         "pcnbv_sph_matched": "pcnbv_sph",
         "vig_hull_sco": "pcnbv_sph_vig",
+        "vig_hull_sco_matched": "pcnbv_sph_vig",
         "vig_hull_sco_sph": "pcnbv_sph_vig",
     }
-    assert [m.name for m in METHODS.values() if m.matched] == ["pcnbv_matched", "pcnbv_sph_matched"]
+    assert [m.name for m in METHODS.values() if m.matched] == [
+        "pcnbv_matched",
+        "pcnbv_sph_matched",
+        "vig_hull_sco_matched",
+    ]
     assert networks_of(
         ["random", "vig_hull_sco", "pcnbv", "pcnbv_sph_vig", "vig_hull_sco_sph"]
     ) == ("pcnbv_sph_vig", "pcnbv")

@@ -81,7 +81,7 @@ def _ranked() -> tuple[str, ...]:
         m.name
         for m in METHODS.values()
         if m.network_input is not None
-        or m.matched
+        or (m.matched and not m.geometric)
         or (
             m.network is None
             and callable(getattr(m.build(ctx, np.random.default_rng(0)), "view_scores", None))

@@ -105,7 +105,8 @@ class Method:
         paper_times: the paper's Table 1 row, stage -> seconds per 9-view reconstruction
             (FACTS.md), when the paper times this method.
         matched: it runs ``network``'s network on the episode's viewspace by direction
-            (:mod:`nbv.policies.view_matching`): it scores every view as a network method does.
+            (:mod:`nbv.policies.view_matching`); unless ``geometric`` (a two-stage planner led
+            by it) it scores every view as a network method does.
     """
 
     name: str
@@ -375,14 +376,21 @@ HULL_SCO_PROBES = Method(
 )
 
 
-def _two_stage(sph: bool) -> Callable[[MethodContext, np.random.Generator], Policy]:
+def _two_stage(
+    sph: bool, matched: bool = False
+) -> Callable[[MethodContext, np.random.Generator], Policy]:
     """The builder of the two-stage planner: ``PCNBV_SPH_VIG``'s picks for ``hull.network_views``
-    decisions, then a one-shot plan (on the signature's hull with ``sph``) on the whole cloud."""
-    return lambda ctx, rng: NetworkThenHullPolicy(
-        _loaded(ctx, PCNBV_SPH_VIG.name),
-        _hull_policy(ctx, rng, sph=sph),
-        ctx.hull.network_views,
-    )
+    decisions (its views matched with the episode's by direction with ``matched``), then a
+    one-shot plan (on the signature's hull with ``sph``) on the whole cloud."""
+
+    def build(ctx: MethodContext, rng: np.random.Generator) -> Policy:
+        network = _loaded(ctx, PCNBV_SPH_VIG.name)
+        if matched:
+            network = MatchedNetworkPolicy(network, original_viewspace())
+        return NetworkThenHullPolicy(network, _hull_policy(ctx, rng, sph=sph),
+                                     ctx.hull.network_views)  # fmt: skip
+
+    return build
 
 
 VIG_HULL_SCO = Method(
@@ -394,6 +402,16 @@ VIG_HULL_SCO = Method(
     geometric=True,
     score="vig",
     style=("#ff9896", "--"),
+)
+VIG_HULL_SCO_MATCHED = Method(
+    "vig_hull_sco_matched",
+    "vig_hull_sco with pcnbv_sph_vig's views matched with the episode's viewspace by direction",
+    _two_stage(sph=False, matched=True),
+    network=PCNBV_SPH_VIG.name,
+    matched=True,
+    geometric=True,
+    score="vig",
+    style=("#ad494a", "--"),
 )
 VIG_HULL_SCO_SPH = Method(
     "vig_hull_sco_sph",
@@ -492,6 +510,7 @@ METHODS: dict[str, Method] = {
         HULL_SCO_PROBES,
         HULL_SCO_REPLAN,
         VIG_HULL_SCO,
+        VIG_HULL_SCO_MATCHED,
         VIG_HULL_SCO_SPH,
         IG,
         HULL_IG,
