@@ -4,12 +4,15 @@ brute-force loop on the shipped permuted viewspace."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from nbv.geometry.viewspace import get_viewspace
+from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS
-from nbv.policies.view_matching import NEIGHBOURS, ViewMap
+from nbv.policies.view_matching import NEIGHBOURS, MatchedNetworkPolicy, ViewMap
 
 SQ = np.sqrt(0.5)
 
@@ -92,3 +95,11 @@ def test_interpolation_stays_within_the_neighbours_values(k):
     assert (out >= near.min(axis=-1) - 1e-12).all() and (out <= near.max(axis=-1) + 1e-12).all()
     if k == 1:
         np.testing.assert_array_equal(out, values[:, view_map.nearest])
+
+
+def test_a_network_of_another_size_than_its_training_viewspace_is_refused():
+    network = NetworkPolicy(model=SimpleNamespace(config=SimpleNamespace(n_views=40)))
+    with pytest.raises(
+        ValueError, match="the network has 40 outputs but its training viewspace 33"
+    ):
+        MatchedNetworkPolicy(network, get_viewspace("original"))
