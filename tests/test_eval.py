@@ -9,6 +9,7 @@ import subprocess
 import sys
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -162,7 +163,8 @@ def test_the_vig_methods_vig_auc_is_paired_with_randoms(full_run):
     report = (full_run / "report.md").read_text()
     section = report.split("## VIG-AUC minus random")[1].split("\n## ")[0]
     rows = [line for line in section.splitlines() if line.startswith("| ")][1:]
-    vig_methods = ["pcnbv_sph_vig", "vig_hull_sco", "vig_hull_sco_sph"]  # the default's
+    # the default's
+    vig_methods = ["pcnbv_sph_vig", "vig_hull_sco", "vig_hull_sco_matched", "vig_hull_sco_sph"]
     assert [r.split(" | ")[0] for r in rows] == [f"| {m}" for m in vig_methods]
     for m, row in zip(vig_methods, rows, strict=True):
         diffs = [np.mean(v) - np.mean(per[("random", k, s)])
@@ -638,14 +640,15 @@ def test_ig_learned_runs_the_given_scorer_and_its_bytes_decide_the_log(tiny, tmp
 
 
 def test_hull_policies_get_the_dilation_setting():
-    networks = {"pcnbv_sph_vig": NetworkPolicy(model=object(), input="signature")}
+    # A stand-in model: building reads only its number of outputs (the matched planner checks it).
+    model = SimpleNamespace(config=SimpleNamespace(n_views=33))
+    networks = {"pcnbv_sph_vig": NetworkPolicy(model=model, input="signature")}
+    two_stage = ("hull_ig", "vig_hull_sco", "vig_hull_sco_matched", "vig_hull_sco_sph")
     for dilate in (False, True):
         ctx = MethodContext(networks, HullSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
         for method in GEOMETRIC:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
-            hull = (
-                policy.hull if method in ("hull_ig", "vig_hull_sco", "vig_hull_sco_sph") else policy
-            )
+            hull = policy.hull if method in two_stage else policy
             if not isinstance(hull, InformationGainPolicy):  # the volumetric ones have no hull
                 assert hull.settings.dilate is dilate and hull.eps == 0.03, method
 
