@@ -3,6 +3,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from nbv.geometry.symmetry import viewspace_symmetries
 from nbv.geometry.viewspace import (
     DATA_DIR,
     PERMUTED_SEED,
@@ -226,6 +227,34 @@ def test_a_file_with_two_views_in_one_direction_is_refused(tmp_path):
     path.write_text("0 0 1\n1 0 0\n0 0 2\n")
     with pytest.raises(ViewspaceError, match="duplicate of the direction on line 1"):
         ViewspaceSpec(kind="file", file=str(path)).directions()
+
+
+def test_angular_distances_known_angles_and_zero_to_itself():
+    a = np.array([[1.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
+    b = np.array([[3.0, 3.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 5.0]])
+    np.testing.assert_allclose(
+        angular_distances(a, b), [[45.0, 180.0, 90.0], [45.0, 90.0, 90.0]], rtol=0, atol=1e-12
+    )
+    # 0 from every direction to itself, to rounding (arccos of the dot product is off by up to
+    # ~1e-6 degrees, as much as the threshold that tells one view from another).
+    for name in ("original", "permuted"):
+        vs = get_viewspace(name)
+        assert np.all(np.diag(angular_distances(vs, vs)) == 0.0)
+        assert np.diag(angular_distances(vs, 2.5 * vs)).max() < 1e-12
+
+
+def test_angular_distances_tie_views_equally_far_in_exact_arithmetic():
+    # PC-NBV's viewspace has 16 symmetries; each maps every pair of views to a pair exactly as
+    # far apart, and the rounded angles agree to the last bit (arccos gave 52 distinct values
+    # where there are 28).
+    vs = get_viewspace("original")
+    angles = angular_distances(vs, vs)
+    symmetries = viewspace_symmetries(vs)
+    assert len(symmetries) == 16
+    for sym in symmetries:
+        p = sym.permutation
+        assert np.array_equal(angles[np.ix_(p, p)], angles)
+    assert len(np.unique(angles)) == 28
 
 
 # --------------------------------------------------------------------------------------------

@@ -46,6 +46,7 @@ from nbv.config.cli import command
 from nbv.dataset.records import ModelData
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import coverage_gains
+from nbv.geometry.viewspace import unit_directions
 from nbv.infogain.gain import candidate_voxels
 from nbv.infogain.occupancy import OccupancyMap, OccupancySettings
 from nbv.infogain.settings import VolumetricSettings
@@ -55,7 +56,7 @@ from nbv.models.view_conditioned import (
     load_conditioned,
     save_conditioned,
 )
-from nbv.policies.conditioned_network import ConditionedPolicy, unit_directions
+from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import auc, run_episode
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.utils.selection import masked_argmax
@@ -100,7 +101,7 @@ def _pool(
                 for p, pose in zip(points, poses, strict=True)]  # fmt: skip
         rays = candidate_voxels(poses, intrinsics, volumetric.columns, grid)
     return _Pool(
-        directions=unit_directions(poses[:, :3, 3]),
+        directions=unit_directions(poses[:, :3, 3], np.float32),
         bits=np.concatenate([v.coverage for v in views]),
         points=points,
         n_gt=len(model.gt_points),

@@ -15,7 +15,7 @@ from nbv.utils.stats import Interval, bootstrap_mean
 
 #: The networks matched with the viewspace by direction (:mod:`nbv.policies.view_matching`):
 #: claim 2's text adds how much of their advantage they keep (the verdict is the plain ones').
-MATCHED = tuple(m.name for m in METHODS.values() if m.matched and not m.geometric)
+MATCHED = tuple(m.name for m in METHODS.values() if m.matched_network)
 #: Claim thresholds (stated in the report).
 CLOSE_AUC = 0.02
 DEGRADE_FRACTION = 0.5

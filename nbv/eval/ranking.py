@@ -72,16 +72,16 @@ def _ranked() -> tuple[str, ...]:
     """The registry's methods whose policies score every view (``view_scores``), in its order.
 
     A network method's policy has them (both network policies define ``view_scores``), and so
-    does a network matched by direction (``matched``); a method led by another's network (a
-    two-stage planner) has none; any other method's policy
-    is built once, with default settings, to see.
+    does a network matched by direction (``matched_network``); a method led by another's
+    network (a two-stage planner) has none; any other method's policy is built once, with
+    default settings, to see.
     """
     ctx = MethodContext({}, HullSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS)
     return tuple(
         m.name
         for m in METHODS.values()
         if m.network_input is not None
-        or (m.matched and not m.geometric)
+        or m.matched_network
         or (
             m.network is None
             and callable(getattr(m.build(ctx, np.random.default_rng(0)), "view_scores", None))

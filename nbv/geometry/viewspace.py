@@ -74,6 +74,9 @@ def elevation(viewspace: np.ndarray) -> np.ndarray:
 #: Fibonacci spheres and hemispheres of 30 and 32 views. The lowest-index rule before this one
 #: rounded the cosines to 12 decimals; it picks the same views as ``rng=None`` does on those.
 TIE_TOLERANCE = 1e-12
+#: Decimals of a degree :func:`angular_distances` keeps (1e-9 degrees: far above float64's
+#: rounding error of an angle, far below any two views' difference that means something).
+ANGLE_DECIMALS = 9
 
 
 class SpreadPicks(NamedTuple):
@@ -156,11 +159,24 @@ def spread_views(
     return spread_picks(directions, closed, count, rng).views
 
 
+def unit_directions(positions: np.ndarray, dtype: type = np.float64) -> np.ndarray:
+    """(N, 3) unit directions, of ``dtype``, of the nonzero vectors ``positions`` (N, 3)
+    (normalised in float64 whatever ``dtype``)."""
+    positions = np.asarray(positions, dtype=np.float64)
+    return (positions / np.linalg.norm(positions, axis=1, keepdims=True)).astype(dtype)
+
+
 def angular_distances(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Angles in degrees between every direction of ``a`` (N, 3) and of ``b`` (M, 3): (N, M)."""
-    ua = a / np.linalg.norm(a, axis=1, keepdims=True)
-    ub = b / np.linalg.norm(b, axis=1, keepdims=True)
-    return np.rad2deg(np.arccos(np.clip(ua @ ub.T, -1.0, 1.0)))
+    """Angles in degrees between every direction of ``a`` (N, 3) and of ``b`` (M, 3): (N, M).
+
+    atan2 of the cross and dot products (exact near 0, where arccos of the dot product is off
+    by up to 1e-6 degrees), rounded to :data:`ANGLE_DECIMALS`: pairs of views equally far apart
+    in exact arithmetic (the rings of a symmetric viewspace) are equally far here, so a rule or
+    a rank read off the angles ties them rather than ordering them by rounding error.
+    """
+    ua, ub = unit_directions(a), unit_directions(b)
+    cross = np.linalg.norm(np.cross(ua[:, None, :], ub[None, :, :]), axis=-1)
+    return np.round(np.rad2deg(np.arctan2(cross, ua @ ub.T)), ANGLE_DECIMALS)
 
 
 def _band_directions(rng: np.random.Generator, n: int, band: tuple[float, float]) -> np.ndarray:

@@ -9,7 +9,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from nbv.geometry.viewspace import angular_distances, spread_picks
+from nbv.geometry.viewspace import angular_distances, spread_picks, unit_directions
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
@@ -57,8 +57,7 @@ class SpreadPolicy:
 
     @staticmethod
     def _directions(state: EpisodeState) -> np.ndarray:
-        positions = state.views.poses[:, :3, 3]
-        return positions / np.linalg.norm(positions, axis=1, keepdims=True)
+        return unit_directions(state.views.poses[:, :3, 3])
 
     def view_scores(self, state: EpisodeState) -> np.ndarray:
         """(V,) degrees from each view to its nearest visited view (what the rule maximises)."""

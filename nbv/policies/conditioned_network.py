@@ -16,17 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from nbv.geometry.clouds import farthest_points
+from nbv.geometry.viewspace import unit_directions
 from nbv.infogain.view_features import unvisited_features
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import cloud_or_origin, record_time
 from nbv.policies.lockstep import StateRequest
 from nbv.policies.volumetric import InformationGainPolicy
-
-
-def unit_directions(positions: np.ndarray) -> np.ndarray:
-    """(V, 3) camera positions -> (V, 3) float32 unit directions from the object's centre."""
-    positions = np.asarray(positions, dtype=np.float64)
-    return (positions / np.linalg.norm(positions, axis=1, keepdims=True)).astype(np.float32)
 
 
 @dataclass
@@ -156,7 +151,7 @@ class ConditionedPolicy:
         with torch.inference_mode():
             out = self.model(
                 torch.from_numpy(np.ascontiguousarray(np.stack(points), dtype=np.float32)),
-                torch.from_numpy(np.stack([unit_directions(p) for p in positions])),
+                torch.from_numpy(np.stack([unit_directions(p, np.float32) for p in positions])),
                 torch.from_numpy(np.stack([np.asarray(s, dtype=np.float32) for s in view_states])),
                 None if features is None else torch.from_numpy(np.stack(features)),
             ).numpy()

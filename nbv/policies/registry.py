@@ -134,6 +134,12 @@ class Method:
             raise ValueError(f"method {self.name}: a matched method names the network it runs")
 
     @property
+    def matched_network(self) -> bool:
+        """A network run by direction on the episode's viewspace that scores every view as a
+        network method does (``matched``, not a two-stage planner led by it)."""
+        return self.matched and not self.geometric
+
+    @property
     def networks(self) -> tuple[str, ...]:
         """The network methods whose loaded networks it runs (``MethodContext.networks`` must
         hold them): itself for a network method, ``network`` for one led by another's."""

@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from nbv.geometry.viewspace import angular_distances, unit_directions
 from nbv.policies.episode import EpisodeState
 from nbv.policies.lockstep import StateRequest
 from nbv.policies.network import NetworkPolicy
@@ -30,19 +31,6 @@ from nbv.policies.network import NetworkPolicy
 NEIGHBOURS = 3
 #: Degrees below which two directions are the same view (the score is copied, not interpolated).
 SAME_DEG = 1e-6
-
-
-def _directions(positions: np.ndarray) -> np.ndarray:
-    """(N, 3) float64 unit directions of nonzero vectors (N, 3)."""
-    positions = np.asarray(positions, dtype=np.float64)
-    return positions / np.linalg.norm(positions, axis=1, keepdims=True)
-
-
-def _angles_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, M) degrees between unit directions ``a`` (N, 3) and ``b`` (M, 3); atan2 of the
-    cross and dot products, exact near 0 where arccos of the dot product is not."""
-    cross = np.linalg.norm(np.cross(a[:, None, :], b[None, :, :]), axis=-1)
-    return np.rad2deg(np.arctan2(cross, a @ b.T))
 
 
 @dataclass(frozen=True)
@@ -65,9 +53,9 @@ class ViewMap:
     def between(cls, trained: np.ndarray, views: np.ndarray, k: int = NEIGHBOURS) -> ViewMap:
         """The map from the training views' directions ``trained`` (T, 3) to the episode's
         views' directions ``views`` (V, 3) (any nonzero lengths: only directions count)."""
-        trained, views = _directions(trained), _directions(views)
+        trained, views = unit_directions(trained), unit_directions(views)
         k = min(k, len(trained))
-        angles = _angles_deg(views, trained)
+        angles = angular_distances(views, trained)
         neighbours = np.argsort(angles, axis=1, kind="stable")[:, :k]
         near = np.take_along_axis(angles, neighbours, axis=1)
         same = near[:, :1] < SAME_DEG
@@ -139,7 +127,7 @@ class MatchedNetworkPolicy:
 
     def view_map(self, state: EpisodeState) -> ViewMap:
         """The map to the viewspace of ``state``'s views."""
-        views = _directions(state.views.poses[:, :3, 3])
+        views = unit_directions(state.views.poses[:, :3, 3])
         key = views.tobytes()
         if key not in self.maps:
             self.maps[key] = ViewMap.between(self.trained, views)
