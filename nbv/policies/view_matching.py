@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from nbv.geometry.viewspace import angular_distances, unit_directions
+from nbv.geometry.viewspace import angular_distances
 from nbv.policies.episode import EpisodeState
 from nbv.policies.lockstep import StateRequest
 from nbv.policies.network import NetworkPolicy
@@ -53,7 +53,6 @@ class ViewMap:
     def between(cls, trained: np.ndarray, views: np.ndarray, k: int = NEIGHBOURS) -> ViewMap:
         """The map from the training views' directions ``trained`` (T, 3) to the episode's
         views' directions ``views`` (V, 3) (any nonzero lengths: only directions count)."""
-        trained, views = unit_directions(trained), unit_directions(views)
         k = min(k, len(trained))
         angles = angular_distances(views, trained)
         neighbours = np.argsort(angles, axis=1, kind="stable")[:, :k]
@@ -127,7 +126,7 @@ class MatchedNetworkPolicy:
 
     def view_map(self, state: EpisodeState) -> ViewMap:
         """The map to the viewspace of ``state``'s views."""
-        views = unit_directions(state.views.poses[:, :3, 3])
+        views = np.ascontiguousarray(state.views.poses[:, :3, 3])
         key = views.tobytes()
         if key not in self.maps:
             self.maps[key] = ViewMap.between(self.trained, views)
