@@ -3,8 +3,8 @@
     python scripts/ship_weights.py <best.pt> nbv/assets/weights/<method>.pt \
         --command "<the training command>" [--dataset data/generated/research]
 
-A checkpoint of PCNBV, PCNBV-sph or the viewspace-conditioned network (told apart by the
-checkpoint's format) is written as shipped weights: bfloat16 tensors, the optimizer state
+A checkpoint of PCNBV, PCNBV-sph, the viewspace-conditioned or the completion network (told
+apart by the checkpoint's format) is written as shipped weights: bfloat16 tensors, the optimizer state
 dropped, and in ``extra["shipped"]`` the command that made it, the dataset and its identity
 (:func:`train.records.dataset_identity`) and the source file. Only those who ship weights with the
 package need it; users train with ``python -m train`` and evaluate their own ``best.pt``.
@@ -23,6 +23,7 @@ from nbv.models.checkpoints import (
     load_checkpoint,
     save_checkpoint,
 )
+from nbv.models.completion_inference import COMPLETION_FORMAT, load_completion, save_completion
 from nbv.models.view_conditioned import CONDITIONED_FORMAT, load_conditioned, save_conditioned
 from train.records import dataset_identity
 
@@ -30,7 +31,24 @@ from train.records import dataset_identity
 FORMATS = {
     CHECKPOINT_FORMAT: (load_checkpoint, save_checkpoint),
     CONDITIONED_FORMAT: (load_conditioned, save_conditioned),
+    COMPLETION_FORMAT: (load_completion, save_completion),
 }
+
+
+def data_identity(src_format: str | None, dataset: Path) -> str:
+    """The identity of what the checkpoint was trained on: a dataset's
+    (:func:`train.records.dataset_identity`), or for the completion network the hash of its
+    data shards' names and settings."""
+    if src_format != COMPLETION_FORMAT:
+        return dataset_identity(dataset)
+    import hashlib
+
+    import h5py
+
+    text = "".join(
+        f"{p.name}:{h5py.File(p, 'r').attrs['settings']}" for p in sorted(dataset.glob("*.h5"))
+    )
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def checkpoint_format(path: Path) -> str | None:
@@ -54,16 +72,22 @@ def ship(src: Path, dst: Path, command: str, dataset: Path) -> dict:
     Raises:
         CheckpointError: ``src`` is not a checkpoint of one of the project's networks.
     """
-    load, save = FORMATS.get(checkpoint_format(src), (None, None))
+    found = checkpoint_format(src)
+    load, save = FORMATS.get(found, (None, None))
     if load is None:
         raise CheckpointError(
-            f"{src}: not a checkpoint of PCNBV or of the view-conditioned network (formats "
+            f"{src}: not a checkpoint of PCNBV, the view-conditioned or the completion network "
+            "(formats "
             f"{', '.join(FORMATS)})"
         )
     model, extra = load(src)
     model = model.to(torch.bfloat16)
-    provenance = {"command": command, "dataset": str(dataset),
-                  "dataset_identity": dataset_identity(dataset), "source": str(src)}  # fmt: skip
+    provenance = {
+        "command": command,
+        "dataset": str(dataset),
+        "dataset_identity": data_identity(found, dataset),
+        "source": str(src),
+    }
     keep = {k: v for k, v in extra.items() if k not in ("optimizer",)}
     save(dst, model, {**keep, "shipped": provenance})
     return provenance

@@ -22,7 +22,14 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import original_viewspace
 from nbv.infogain.gain_scorer import GainScorer, load_scorer
 from nbv.infogain.settings import VolumetricSettings
+from nbv.models.completion_inference import Completer
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
+from nbv.policies.completion import (
+    Completion,
+    CompletionGainPolicy,
+    CompletionHullPolicy,
+    CompletionHullReplanPolicy,
+)
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import Policy
 from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy
@@ -41,6 +48,8 @@ log = logging.getLogger(__name__)
 CHECKS = ("random_cloud", "permuted_state", "random_hull", "position_noise")
 #: The scores a method may be made to raise (:attr:`Method.score`).
 SCORES = ("coverage", "vig")
+#: The shipped weights' name of the completion network (``python -m train.completion``).
+COMPLETION_WEIGHTS = "completion"
 
 
 @dataclass(frozen=True)
@@ -60,6 +69,9 @@ class MethodContext:
             depend on the viewspace and the settings only).
         scorer: the learned score of ``ig_learned``; None: the weights the package ships
             (:data:`SHIPPED_SCORER`).
+        completion: the completion of the completion planners (captured cloud -> points on
+            the whole surface); None: the completion network the package ships, loaded once
+            for the context (:func:`completion_of`).
     """
 
     networks: Mapping[str, NetworkPolicy]
@@ -70,6 +82,25 @@ class MethodContext:
     volumetric: VolumetricSettings = field(default_factory=VolumetricSettings)
     traced: dict = field(default_factory=dict, compare=False, repr=False)
     scorer: GainScorer | None = field(default=None, compare=False, repr=False)
+    completion: Completion | None = field(default=None, compare=False, repr=False)
+    loaded: dict = field(default_factory=dict, compare=False, repr=False)
+
+
+def completion_of(ctx: MethodContext) -> Completion:
+    """The context's completion: ``ctx.completion``, else the shipped completion network
+    (loaded on the first call and kept in ``ctx.loaded``).
+
+    Raises:
+        ValueError: the package ships no completion network.
+    """
+    if ctx.completion is not None:
+        return ctx.completion
+    if "completion" not in ctx.loaded:
+        path = shipped_weights(COMPLETION_WEIGHTS)
+        if path is None:
+            raise ValueError(f"no completion network shipped ({COMPLETION_WEIGHTS}.pt)")
+        ctx.loaded["completion"] = Completer.from_checkpoint(path)
+    return ctx.loaded["completion"]
 
 
 @dataclass(frozen=True)
@@ -495,6 +526,62 @@ IG_PROXIMITY = Method(
     style=("#7b4173", ":"),
 )
 
+
+def _completion_hull(
+    replan: bool = False,
+) -> Callable[[MethodContext, np.random.Generator], Policy]:
+    """The builder of the set cover on the hull of the captured cloud and its completion."""
+    kind = CompletionHullReplanPolicy if replan else CompletionHullPolicy
+
+    def build(ctx: MethodContext, rng: np.random.Generator) -> Policy:
+        return kind(rng=rng, settings=ctx.hull, n_views=ctx.n_views, intrinsics=ctx.intrinsics,
+                    eps=ctx.eps, complete=completion_of(ctx))  # fmt: skip
+
+    return build
+
+
+def _completion_gain(rule: str) -> Callable[[MethodContext, np.random.Generator], Policy]:
+    """The builder of the view contribution of the context's completion by ``rule``."""
+    return lambda ctx, rng: CompletionGainPolicy(
+        completion_of(ctx), ctx.intrinsics, rule=rule, eps=ctx.eps
+    )
+
+
+COMPLETION_HULL_SCO = Method(
+    "completion_hull_sco",
+    "the paper's completed hull: convex-hull set cover, one-shot from the start view, on the "
+    "hull of the cloud and its completion by the completion network",
+    _completion_hull(),
+    geometric=True,
+    style=("#7f2704", "-"),
+)
+COMPLETION_HULL_SCO_REPLAN = Method(
+    "completion_hull_sco_replan",
+    "completion_hull_sco replanned after every view on the whole cloud's completion",
+    _completion_hull(replan=True),
+    geometric=True,
+    style=("#a63603", "-."),
+    by_default=False,
+)
+COMPLETION_GAIN = Method(
+    "completion_gain",
+    "the view contribution of the completed cloud, completed again every view: the predicted "
+    "points a view would see (a z-buffer of the whole completed cloud) that no captured view "
+    "sees",
+    _completion_gain("visibility"),
+    geometric=True,
+    style=("#006d2c", "-"),
+)
+COMPLETION_GAIN_AUTHORS = Method(
+    "completion_gain_authors",
+    "[15]'s view contribution as the seed paper's authors ran it: the predicted points farther "
+    "than eps from the captured cloud, counted by hidden-point removal from each view",
+    _completion_gain("authors"),
+    geometric=True,
+    style=("#74c476", "--"),
+    by_default=False,
+)
+
 #: Every method, in report order.
 METHODS: dict[str, Method] = {
     m.name: m
@@ -523,6 +610,10 @@ METHODS: dict[str, Method] = {
         IG_LEARNED,
         IG_AREA_FACTOR,
         IG_PROXIMITY,
+        COMPLETION_HULL_SCO,
+        COMPLETION_HULL_SCO_REPLAN,
+        COMPLETION_GAIN,
+        COMPLETION_GAIN_AUTHORS,
     )
 }
 #: The methods ``python -m nbv.eval`` runs when none are given (``by_default``), in report order.
