@@ -85,3 +85,14 @@ def test_a_failing_claim_names_each_method_whose_interval_fails() -> None:
     assert rows["2"][3].startswith("**does not hold**: hull_sco's kept advantage: -0.039 [")
     assert rows["2"][3].endswith("is not above 0")
     assert rows["3"][3] == "**holds**"
+
+
+def test_claim_5_pairs_the_completed_hull_with_the_partial_one() -> None:
+    base = {vs: dict(methods) for vs, methods in BASE.items()}
+    assert _rows(_records(base))["5"][3] == "n/a (not measured)"
+    base["original"]["completion_hull_sco"] = 0.68  # +0.02 over hull_sco, +0.03 over spread
+    base["permuted"]["completion_hull_sco"] = 0.66  # ties hull_sco and beats spread by 0.01
+    rows = _rows(_records(base))
+    assert rows["5"][2].startswith("completion_hull_sco - hull_sco (original) +0.020 [")
+    assert rows["5"][3].startswith("**does not hold**: completion_hull_sco - hull_sco (permuted)")
+    assert rows["5"][5] == "**holds**"

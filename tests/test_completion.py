@@ -103,21 +103,23 @@ def test_fitting_check_reaches_a_low_chamfer(tmp_path):
     data = cdata.load(paths, settings)
     models = data.subset("train")[:4]
     torch.manual_seed(0)
-    config = CompletionConfig(n_input=256, n_coarse=128, fold=2)
+    config = CompletionConfig(n_input=128, encoder1=(32, 64), encoder2=(128, 256),
+                              coarse_hidden=(256,), n_coarse=128, fold=2, fold_hidden=(32, 32))  # fmt: skip
     net = CompletionNet(config)
-    opt = torch.optim.Adam(net.parameters(), lr=1e-3)
+    opt = torch.optim.Adam(net.parameters(), lr=2e-3)
     rng = np.random.default_rng(0)
     gt = torch.from_numpy(data.gt[models].astype(np.float32))
     history = []
-    for _ in range(250):
-        x = np.stack([cdata.draw_sample(data, int(m), rng, 256)[0] for m in models])
+    for _ in range(150):
+        x = np.stack([cdata.draw_sample(data, int(m), rng, 128)[0] for m in models])
         coarse, fine = net(torch.from_numpy(x))
         loss = (chamfer_l1(coarse, gt) + chamfer_l1(fine, gt)).mean()
         opt.zero_grad()
         loss.backward()
         opt.step()
         history.append(chamfer_l1(fine, gt).mean().item())
-    assert np.mean(history[-10:]) < 0.025 < history[0]
+    print("fitting check: CD-L1 first", history[0], "last ten", np.mean(history[-10:]))
+    assert np.mean(history[-10:]) < 0.03 < 0.06 < history[0]
 
 
 def test_data_shards_resume_and_refuse_other_settings(tmp_path):
@@ -142,7 +144,7 @@ def test_data_shards_resume_and_refuse_other_settings(tmp_path):
 CAMERA = Intrinsics.centred(64, 48, 48.0)
 
 
-def _brute_visible(points, poses, cell, tolerance):
+def _brute_visible(points, poses, cell, tolerance, hole):
     """Point by point, camera by camera: the rule of visible_points written as loops."""
     out = np.zeros((len(poses), len(points)), dtype=bool)
     for v, pose in enumerate(poses):
@@ -162,7 +164,8 @@ def _brute_visible(points, poses, cell, tolerance):
                 continue
             cu, cw = int(np.floor((u + 0.5) / px)), int(np.floor((w + 0.5) / px))
             near = min(cells.get((cu + i, cw + j), np.inf) for i in (-1, 0, 1) for j in (-1, 0, 1))
-            out[v, n] = z[n] <= near + tolerance
+            own = cells[(cu, cw)]
+            out[v, n] = z[n] <= own + tolerance and own <= near + hole
     return out
 
 
@@ -170,8 +173,10 @@ def test_visibility_agrees_with_a_brute_force_count():
     rng = np.random.default_rng(1)
     points = rng.normal(size=(300, 3)) * 0.2
     poses = np.stack([look_at(p) for p in rng.normal(size=(5, 3)) * 1.2])
-    got = visible_points(points, poses, CAMERA, 0.03, 0.02)
-    np.testing.assert_array_equal(got, _brute_visible(points, poses, 0.03, 0.02))
+    got = visible_points(points, poses, CAMERA, 0.03, 0.02, 0.05)
+    want = _brute_visible(points, poses, 0.03, 0.02, 0.05)
+    np.testing.assert_array_equal(got, want)
+    assert 0 < want.sum() < want.size
 
 
 def _plates(n=20):
@@ -186,7 +191,7 @@ def test_the_near_plate_hides_the_far_one():
     poses = np.stack([look_at(np.array([0.0, 0.0, 1.0])), look_at(np.array([0.0, 0.0, -1.0]))])
     s = cloud_spacing(points)
     assert s == pytest.approx(0.4 / 19)
-    vis = visible_points(points, poses, CAMERA, 1.5 * s, 2 * s)
+    vis = visible_points(points, poses, CAMERA, 1.5 * s, 2 * s, 4 * s)
     front, back = slice(0, 400), slice(400, 800)
     assert vis[0, front].all() and not vis[0, back].any()
     assert vis[1, back].all() and not vis[1, front].any()

@@ -254,7 +254,8 @@ def run(
 
     ``network`` adds the network rows of :func:`nbv.bench.network.network_rows` and the
     training rows of :func:`nbv.bench.training.training_rows` (PCNBV's weights from
-    ``checkpoint``, else the shipped ones; PCNBV-sph's shipped);
+    ``checkpoint``, else the shipped ones; PCNBV-sph's shipped) and the completion rows of
+    :func:`nbv.bench.completion.completion_rows`;
     ``render`` the rendering rows."""
     scene = bench_scene(seed)
     views = scene["views"]
@@ -278,6 +279,9 @@ def run(
         targets = {"PCNBV": 0.13, "PCNBV-sph": 0.04}
         rows += network_rows(stored, [(name, w, targets[name]) for name, w in networks])
         rows += training_rows(networks, len(stored))
+        from nbv.bench.completion import completion_rows
+
+        rows += completion_rows(stored, scene["poses"], scene["intrinsics"])
     if render:
         rows += _render_rows(scene)
     return rows

@@ -34,7 +34,9 @@ from nbv.utils.stats import Interval, bootstrap_mean
 F_THRESHOLD = 0.01
 #: The start views of every model.
 STARTS = (1, 7, 15, 27)
-#: The clouds compared: the partial cloud, its mirror completion, the network's output, both.
+#: The clouds compared: the partial cloud, its mirror completion, the network's output, and the
+#: completed cloud ("union"): the partial cloud and the predicted points farther than the
+#: completer's ``fill`` from it (:func:`nbv.geometry.clouds.fill_in`).
 KINDS = ("partial", "mirror", "network", "union")
 #: Mirror planes through the origin: 12 vertical (normal (cos a, 0, sin a), a = 0, 15, ...,
 #: 165 degrees), then the horizontal y = 0.
@@ -168,6 +170,7 @@ def quality_rows(
                 cases.append((start, k, order[:k]))
                 clouds.append(cloud.astype(np.float64))
         outputs = np.asarray(completer.batch(clouds), dtype=np.float64)
+        fill = float(getattr(completer, "fill", 0.0))
         for (start, k, views), partial, net in zip(cases, clouds, outputs, strict=True):
             plane, *d_mirror = _best_mirror(partial, gt, gt_tree)
             row = {"key": key, "category": model.category, "start": start, "k": k,
@@ -175,11 +178,19 @@ def quality_rows(
                    "plane": plane}  # fmt: skip
             d_part_gt, d_net_gt = _nearest(partial, gt_tree), _nearest(net, gt_tree)
             d_gt_part, d_gt_net = _nearest(gt, cKDTree(partial)), _nearest(gt, cKDTree(net))
+            # The completed cloud: the capture and the predictions it lacks (fill_in).
+            far = _nearest(net, cKDTree(partial)) > fill
+            d_gt_net_far = (
+                _nearest(gt, cKDTree(net[far])) if far.any() else np.full(len(gt), np.inf)
+            )
             sides = {
                 "partial": (d_part_gt, d_gt_part),
                 "mirror": tuple(d_mirror),
                 "network": (d_net_gt, d_gt_net),
-                "union": (np.concatenate([d_part_gt, d_net_gt]), np.minimum(d_gt_part, d_gt_net)),
+                "union": (
+                    np.concatenate([d_part_gt, d_net_gt[far]]),
+                    np.minimum(d_gt_part, d_gt_net_far),
+                ),
             }
             for kind, (d_pred, d_gt) in sides.items():
                 row[f"cd_{kind}"], row[f"f_{kind}"] = _scores(d_pred, d_gt, F_THRESHOLD)
@@ -264,8 +275,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     defaults = {"dataset": "data/generated/synthetic", "viewspace": "original", "out": "",
                 "checkpoint": str(FOLDER / f"{COMPLETION_WEIGHTS}.pt"), "models": "unseen",
                 "seed": "0"}  # fmt: skip
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv in (["--help"], ["-h"]):
+        print(__doc__)
+        return 0
     try:
-        a = _arguments(sys.argv[1:] if argv is None else argv, defaults)
+        a = _arguments(argv, defaults)
         wanted = {"unseen": UNSEEN_CATEGORIES, "test": TRAIN_CATEGORIES, "all": None}
         if not a["out"]:
             raise ValueError("out=<folder> is required")

@@ -3,9 +3,10 @@
 A cloud has no surface to ray cast, so each camera gets a coarse depth image made of the points:
 the image plane is cut into square cells, each cell keeps the nearest depth of the points that
 project into it, and a point is visible when it lies in the camera's image, in front of the
-camera, and no farther than ``tolerance`` behind the nearest depth of its own cell and of the
-eight around it. The neighbourhood closes the holes a sparse cloud leaves between its points;
-the tolerance keeps a surface slanted away from the camera from hiding itself.
+camera, no farther than ``tolerance`` behind the nearest point of its own cell (a surface
+slanted away from the camera does not hide itself), and its cell is no hole: a cell whose
+nearest point lies more than ``hole`` behind the nearest of the nine cells around it sees
+through a gap between a sparse cloud's points, and its points are hidden.
 
 The seen surface stays in the cloud, so it occludes what lies behind it: the rule agrees with
 the coverage test of a rendered view (a point is covered when the camera's image holds a point
@@ -33,17 +34,20 @@ class SplatSettings:
 
     Attributes:
         cell: side of a z-buffer cell at the camera's distance from the origin.
-        tolerance: depth a point may lie behind the nearest one around it and still be seen.
+        tolerance: depth a point may lie behind the nearest one of its cell and still be seen.
+        hole: depth the nearest point of a cell may lie behind the nearest of the cells around
+            it before the cell is a hole.
     """
 
     cell: float = 1.5
-    tolerance: float = 8.0
+    tolerance: float = 4.0
+    hole: float = 8.0
 
     def __post_init__(self) -> None:
-        if not (self.cell > 0 and self.tolerance >= 0):
+        if not (self.cell > 0 and self.tolerance >= 0 and self.hole >= 0):
             raise ValueError(
-                f"splat settings cell={self.cell}, tolerance={self.tolerance}: cell must be "
-                "> 0 and tolerance >= 0"
+                f"splat settings cell={self.cell}, tolerance={self.tolerance}, hole={self.hole}: "
+                "cell must be > 0, tolerance and hole >= 0"
             )
 
 
@@ -63,6 +67,7 @@ def visible_points(
     intrinsics: Intrinsics,
     cell: float,
     tolerance: float,
+    hole: float,
 ) -> np.ndarray:
     """(V, N) bool: point ``n`` is seen from camera ``v`` (see the module docstring).
 
@@ -72,7 +77,10 @@ def visible_points(
         intrinsics: the cameras' intrinsics; the image bounds are theirs.
         cell: z-buffer cell side, world units at the camera's distance from the origin (its
             size in pixels is ``cell * fx / distance``, at least one pixel).
-        tolerance: world units a point may lie behind the nearest depth around it.
+        tolerance: world units a point may lie behind the nearest point of its cell.
+        hole: world units the nearest point of a cell may lie behind the nearest of the nine
+            cells around it before the cell counts as a hole in the surface in front (its
+            points are hidden).
 
     Returns:
         (V, N) bool.
@@ -101,7 +109,8 @@ def visible_points(
     np.minimum.at(zbuf, flat[inside], z[inside])
     near = minimum_filter(zbuf.reshape(n_views, gh, gw), size=(1, 3, 3), mode="constant",
                           cval=np.inf).ravel()  # fmt: skip
-    return inside & (z <= near[flat] + tolerance)
+    own = zbuf[flat]
+    return inside & (z <= own + tolerance) & (own <= near[flat] + hole)
 
 
 def visible_from(
@@ -115,4 +124,5 @@ def visible_from(
     cloud's own, :func:`cloud_spacing`)."""
     s = cloud_spacing(points) if spacing is None else spacing
     s = max(s, 1e-6)
-    return visible_points(points, poses, intrinsics, settings.cell * s, settings.tolerance * s)
+    return visible_points(points, poses, intrinsics, settings.cell * s, settings.tolerance * s,
+                          settings.hole * s)  # fmt: skip

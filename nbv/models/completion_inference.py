@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from nbv.geometry.clouds import farthest_points
+from nbv.geometry.clouds import farthest_points, fill_in
 from nbv.models.checkpoints import CheckpointError, read_payload, write_payload
 from nbv.models.completion import CompletionConfig, CompletionNet
 from nbv.models.precision import autocast, flush_denormals
@@ -60,15 +60,25 @@ class Completer:
     Attributes:
         model: the network (eval mode).
         precision: the forward pass's arithmetic (:func:`nbv.models.precision.autocast`).
+        fill: the distance from the captured cloud beyond which a predicted point completes
+            it (:meth:`complete`): the network's validation CD-L1, its typical error.
     """
 
     model: CompletionNet
     precision: str = "auto"
+    fill: float = 0.0
 
     @classmethod
     def from_checkpoint(cls, path: str | os.PathLike[str], precision: str = "auto") -> Completer:
-        """The completer of a checkpoint (:func:`load_completion`)."""
-        return cls(load_completion(path)[0], precision)
+        """The completer of a checkpoint (:func:`load_completion`); ``fill`` is the validation
+        CD-L1 it records (``extra["val_cd_fine"]``, 0 when absent)."""
+        model, extra = load_completion(path)
+        return cls(model, precision, float(extra.get("val_cd_fine", 0.0)))
+
+    def complete(self, cloud: np.ndarray) -> np.ndarray:
+        """(N, 3) captured points -> the captured cloud and the predicted points farther than
+        ``fill`` from it (:func:`nbv.geometry.clouds.fill_in`), float64."""
+        return fill_in(cloud, self(cloud), self.fill)
 
     def __call__(self, cloud: np.ndarray) -> np.ndarray:
         """(N, 3) captured points, N >= 1, the normalised frame -> (n_fine, 3) float32 predicted
