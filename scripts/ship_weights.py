@@ -4,8 +4,8 @@
         --command "<the training command>" [--dataset data/generated/research]
 
 A checkpoint of PCNBV, PCNBV-sph, the viewspace-conditioned or the completion network (told
-apart by the checkpoint's format) is written as shipped weights: bfloat16 tensors, the optimizer state
-dropped, and in ``extra["shipped"]`` the command that made it, the dataset and its identity
+apart by the checkpoint's format) is written as shipped weights: bfloat16 tensors, the optimizer
+state dropped, and in ``extra["shipped"]`` the command that made it, the dataset and its identity
 (:func:`train.records.dataset_identity`) and the source file. Only those who ship weights with the
 package need it; users train with ``python -m train`` and evaluate their own ``best.pt``.
 """

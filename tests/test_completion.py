@@ -103,8 +103,10 @@ def test_fitting_check_reaches_a_low_chamfer(tmp_path):
     data = cdata.load(paths, settings)
     models = data.subset("train")[:4]
     torch.manual_seed(0)
-    config = CompletionConfig(n_input=128, encoder1=(32, 64), encoder2=(128, 256),
-                              coarse_hidden=(256,), n_coarse=128, fold=2, fold_hidden=(32, 32))  # fmt: skip
+    config = CompletionConfig(
+        n_input=128, encoder1=(32, 64), encoder2=(128, 256), coarse_hidden=(256,),
+        n_coarse=128, fold=2, fold_hidden=(32, 32),
+    )  # fmt: skip
     net = CompletionNet(config)
     opt = torch.optim.Adam(net.parameters(), lr=2e-3)
     rng = np.random.default_rng(0)

@@ -80,8 +80,8 @@ def visibility_gains(
     """
     spacing = max(cloud_spacing(predicted), 1e-6)
     points = np.concatenate([predicted, occluders(captured, len(predicted))])
-    seen = visible_points(points, poses, intrinsics, splat.cell * spacing,
-                          splat.tolerance * spacing, splat.hole * spacing)[:, : len(predicted)]  # fmt: skip
+    sizes = (splat.cell * spacing, splat.tolerance * spacing, splat.hole * spacing)
+    seen = visible_points(points, poses, intrinsics, *sizes)[:, : len(predicted)]
     already = seen[visited].any(axis=0)
     if len(captured):
         already |= cKDTree(captured).query(predicted, distance_upper_bound=eps)[0] <= eps
