@@ -498,7 +498,10 @@ def test_default_config_composes_to_the_documented_defaults():
         cfg = compose("eval", overrides=["run=x"])
     s = ENTRY.build(cfg)
     assert s.methods == DEFAULT_METHODS and s.datasets == ("unseen",)
-    assert set(METHODS_BY_NAME) - set(s.methods) == {"oracle_vig", "pcnbv_vig", "pcnbv_matched"}
+    assert set(METHODS_BY_NAME) - set(s.methods) == {
+        "oracle_vig", "pcnbv_vig", "pcnbv_matched", "completion_hull_sco_replan",
+        "completion_gain_authors",
+    }  # fmt: skip
     assert s.viewspaces == ("original", "permuted") and s.start_views == (
         1,
         3,
@@ -640,6 +643,8 @@ def test_ig_learned_runs_the_given_scorer_and_its_bytes_decide_the_log(tiny, tmp
 
 
 def test_hull_policies_get_the_dilation_setting():
+    from nbv.policies.completion import CompletionGainPolicy
+
     # A stand-in model: building reads only its number of outputs (the matched planner checks it).
     model = SimpleNamespace(config=SimpleNamespace(n_views=33))
     networks = {"pcnbv_sph_vig": NetworkPolicy(model=model, input="signature")}
@@ -649,7 +654,8 @@ def test_hull_policies_get_the_dilation_setting():
         for method in GEOMETRIC:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
             hull = policy.hull if method in two_stage else policy
-            if not isinstance(hull, InformationGainPolicy):  # the volumetric ones have no hull
+            # The volumetric ones and the view contribution of a completion have no hull.
+            if not isinstance(hull, InformationGainPolicy | CompletionGainPolicy):
                 assert hull.settings.dilate is dilate and hull.eps == 0.03, method
 
 

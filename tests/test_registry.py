@@ -128,7 +128,8 @@ def test_derived_lists_follow_the_entries():
         "pcnbv_sph_vig", "pcnbv_matched", "pcnbv_sph_matched", "vcnbv", "vcnbv_map", "hull_sco",
         "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco",
         "vig_hull_sco_matched", "vig_hull_sco_sph",
-        "ig", "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity",
+        "ig", "hull_ig", "ig_learned", "ig_area_factor", "ig_proximity", "completion_hull_sco",
+        "completion_hull_sco_replan", "completion_gain", "completion_gain_authors",
     ]  # fmt: skip
     assert NETWORK_INPUTS == {"pcnbv": "points", "pcnbv_sph": "signature", "pcnbv_vig": "points",
                               "pcnbv_sph_vig": "signature", "vcnbv": "directions",
@@ -136,14 +137,16 @@ def test_derived_lists_follow_the_entries():
     assert GEOMETRIC == (
         "hull_sco", "hull_sco_sph", "hull_sco_probes", "hull_sco_replan", "vig_hull_sco",
         "vig_hull_sco_matched", "vig_hull_sco_sph", "ig", "hull_ig", "ig_learned", "ig_area_factor",
-        "ig_proximity",
+        "ig_proximity", "completion_hull_sco", "completion_hull_sco_replan", "completion_gain",
+        "completion_gain_authors",
     )  # fmt: skip
     # Every method runs by default but the point network trained on VIG, the VIG oracle and
     # PCNBV matched by direction (the costliest decisions of the default run after pcnbv's, and
-    # as costly).
+    # as costly), and the completion planners' variants (replanned; [15]'s rule).
     assert DEFAULT_METHODS == tuple(
-        m for m in METHODS if m not in ("oracle_vig", "pcnbv_vig", "pcnbv_matched")
-    )
+        m for m in METHODS if m not in ("oracle_vig", "pcnbv_vig", "pcnbv_matched",
+                                        "completion_hull_sco_replan", "completion_gain_authors")
+    )  # fmt: skip
     # The methods made to raise VIG; the coverage baselines leave the VIG oracle out.
     assert [m.name for m in METHODS.values() if m.score == "vig"] == [
         "oracle_vig",
@@ -257,3 +260,26 @@ def test_every_policy_has_the_attributes_the_policy_protocol_declares():
             value = getattr(policy, attribute)  # no getattr default: every policy has it
             assert isinstance(value, dict | list), (name, attribute)
         assert not policy.last_gains and all(v == 0 for v in policy.counts.values()), name
+
+
+def test_completion_methods_use_the_contexts_completion_or_the_shipped_network():
+    from nbv.models.completion_inference import Completer
+    from nbv.policies.completion import CompletionGainPolicy, CompletionHullPolicy
+    from nbv.policies.registry import completion_of
+
+    def truth(cloud):
+        return cloud
+
+    ctx = _context(None)
+    ctx = dataclasses.replace(ctx, completion=truth)
+    gain = METHODS["completion_gain"].build(ctx, np.random.default_rng(0))
+    assert isinstance(gain, CompletionGainPolicy) and gain.complete is truth
+    assert gain.rule == "visibility" and gain.eps == 0.02
+    assert METHODS["completion_gain_authors"].build(ctx, np.random.default_rng(0)).rule == "authors"
+    hull = METHODS["completion_hull_sco"].build(ctx, np.random.default_rng(0))
+    assert isinstance(hull, CompletionHullPolicy) and hull.complete is truth
+    assert hull.n_views == 7 and hull.intrinsics == SMALL_CAMERA
+    shipped = _context(None)
+    first = completion_of(shipped)
+    assert isinstance(first, Completer) and completion_of(shipped) is first  # loaded once
+    assert first.fill > 0  # the shipped network's validation CD-L1

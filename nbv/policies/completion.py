@@ -31,10 +31,10 @@ from scipy.spatial import cKDTree
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.point_visibility import SplatSettings, cloud_spacing, visible_points
 from nbv.geometry.scores import DEFAULT_EPS
+from nbv.geometry.viewspace import angular_distances, unit_directions
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.policies.inputs import record_time
-from nbv.utils.selection import masked_argmax
 
 #: A completion: (N, 3) captured points -> (M, 3) points on the whole surface.
 Completion = Callable[[np.ndarray], np.ndarray]
@@ -123,10 +123,24 @@ def authors_gains(
     return gains
 
 
+def spread_tie_break(scores: np.ndarray, state: EpisodeState) -> int:
+    """The unvisited view of the highest score; among views tied for it (all of them once the
+    completion has nothing left to see), the one farthest in angle from the visited views, as
+    ``spread`` picks (then the lowest index)."""
+    best = np.max(scores[~state.view_state])
+    tied = np.flatnonzero((scores == best) & ~state.view_state)
+    if len(tied) == 1:
+        return int(tied[0])
+    d = unit_directions(state.views.poses[:, :3, 3])
+    far = angular_distances(d[tied], d[state.view_state]).min(axis=1)
+    return int(tied[int(np.argmax(far))])
+
+
 @dataclass
 class CompletionGainPolicy:
-    """The unvisited view whose camera sees the most predicted points not yet seen (ties to the
-    lowest index); see the module docstring.
+    """The unvisited view whose camera sees the most predicted points not yet seen (ties, and
+    every view once none sees anything new, broken by :func:`spread_tie_break`); see the module
+    docstring.
 
     Attributes:
         complete: the completion.
@@ -172,7 +186,7 @@ class CompletionGainPolicy:
 
     def __call__(self, state: EpisodeState) -> int:
         scores = self.view_scores(state)
-        choice = int(masked_argmax(scores, state.view_state))
+        choice = spread_tie_break(scores, state)
         self.last_gains = [float(scores[choice])]
         self.counts["planned"] += 1
         self.counts["zero_gain"] += int(scores[choice] <= 0)
