@@ -268,3 +268,16 @@ def test_completed_hull_plans_valid_views(unseen_dataset):
     episode = run_episode(model, "original", 1, policy)
     assert len(set(episode.views)) == 10 and episode.views[0] == 1
     assert "completion" in policy.timings and policy.counts["planned"] == 9
+
+
+def test_flop_count_equals_torch_flop_counter():
+    from torch.utils.flop_counter import FlopCounterMode
+
+    from nbv.models.completion import completion_flops
+
+    for config in (SMALL, CompletionConfig()):
+        with torch.inference_mode(), FlopCounterMode(display=False) as counter:
+            CompletionNet(config).eval()(torch.rand(1, config.n_input, 3))
+        assert completion_flops(config) == counter.get_total_flops()
+    # The documented figure (docs/training.md): 0.283 GFLOP a forward pass.
+    assert completion_flops(CompletionConfig()) == 283_314_176
