@@ -10,7 +10,7 @@
    training model, a view group, 1 to 5 of its views, their points farthest-point sampled to the
    network's input. The loss is CD-L1 on the coarse cloud plus ``alpha`` times CD-L1 on the fine
    one, both against the stored true surface; ``alpha`` rises as PCN's does
-   (:func:`fine_weight`). Adam, the learning rate times ``lr_decay`` every ``lr_step_epochs``
+   (:func:`fine_weight`, by epoch). Adam, the learning rate times ``lr_decay`` every ``lr_step_epochs``
    epochs, bfloat16 autocast where the CPU runs it natively (``precision``).
 3. **Choice.** After every epoch the fine cloud's CD-L1 on fixed samples of the valid split
    (``val_per_model`` a model) is measured; ``best.pt`` is the epoch of the lowest. ``last.pt``
@@ -133,11 +133,11 @@ class CompletionSettings:
 ENTRY = Entry("train_completion_schema", CompletionSettings, extra=(("paths", PathsConfig),))
 
 
-def fine_weight(epoch: int, epochs: int) -> float:
-    """The fine cloud's weight ``alpha`` in epoch ``epoch`` (0-based) of ``epochs``: PCN's
-    schedule (0.01, 0.1, 0.5, 1.0 at 3 %, 7 % and 17 % of its 300k steps), by epochs."""
-    share = epoch / max(epochs, 1)
-    return 0.01 if share < 0.03 else 0.1 if share < 0.07 else 0.5 if share < 0.17 else 1.0
+def fine_weight(epoch: int) -> float:
+    """The fine cloud's weight ``alpha`` in epoch ``epoch`` (0-based): PCN's schedule (0.01,
+    0.1, 0.5, 1.0 from 0, 3 %, 7 % and 17 % of its 300k steps) over the default 60 epochs,
+    fixed by epoch so that ``epochs`` changes no epoch's numbers (a run may train on)."""
+    return 0.01 if epoch < 2 else 0.1 if epoch < 5 else 0.5 if epoch < 11 else 1.0
 
 
 def _batch(data: cdata.CompletionData, models: np.ndarray, rng: np.random.Generator,
@@ -259,7 +259,7 @@ def run(settings: CompletionSettings) -> dict:
         lr = settings.lr * settings.lr_decay ** (epoch // settings.lr_step_epochs)
         for group in optimizer.param_groups:
             group["lr"] = lr
-        alpha = fine_weight(epoch, settings.epochs)
+        alpha = fine_weight(epoch)
         rng = named_rng(settings.seed, "completion-epoch", epoch)
         model.train()
         t0, losses, fine_cds = time.perf_counter(), [], []
