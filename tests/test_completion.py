@@ -75,6 +75,7 @@ def test_chamfer_gradient_is_finite_on_coincident_points():
     assert torch.isfinite(a.grad).all()
 
 
+@pytest.mark.slow
 def test_checkpoint_round_trip_and_refusals(tmp_path):
     net = CompletionNet(SMALL)
     save_completion(tmp_path / "c.pt", net, {"epoch": 3})
@@ -124,6 +125,7 @@ def test_fitting_check_reaches_a_low_chamfer(tmp_path):
     assert np.mean(history[-10:]) < 0.03 < 0.06 < history[0]
 
 
+@pytest.mark.slow
 def test_data_shards_resume_and_refuse_other_settings(tmp_path):
     from train import completion_data as cdata
 
@@ -270,6 +272,7 @@ def test_completed_hull_plans_valid_views(unseen_dataset):
     assert "completion" in policy.timings and policy.counts["planned"] == 9
 
 
+@pytest.mark.slow
 def test_flop_count_equals_torch_flop_counter():
     from torch.utils.flop_counter import FlopCounterMode
 

@@ -132,6 +132,7 @@ class Oracle:
         return np.stack([self.gt] * len(clouds)).astype(np.float32)
 
 
+@pytest.mark.slow
 def test_quality_rows_with_a_perfect_completer():
     ds = Dataset()
     rows = []
