@@ -10,8 +10,8 @@
    training model, a view group, 1 to 5 of its views, their points farthest-point sampled to the
    network's input. The loss is CD-L1 on the coarse cloud plus ``alpha`` times CD-L1 on the fine
    one, both against the stored true surface; ``alpha`` rises as PCN's does
-   (:func:`fine_weight`, by epoch). Adam, the learning rate times ``lr_decay`` every ``lr_step_epochs``
-   epochs, bfloat16 autocast where the CPU runs it natively (``precision``).
+   (:func:`fine_weight`, by epoch). Adam, the learning rate times ``lr_decay`` every
+   ``lr_step_epochs`` epochs, bfloat16 autocast where the CPU runs it natively (``precision``).
 3. **Choice.** After every epoch the fine cloud's CD-L1 on fixed samples of the valid split
    (``val_per_model`` a model) is measured; ``best.pt`` is the epoch of the lowest. ``last.pt``
    (weights, optimizer, epoch) is written every epoch, and a rerun with the same settings
