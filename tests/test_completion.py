@@ -284,3 +284,24 @@ def test_flop_count_equals_torch_flop_counter():
         assert completion_flops(config) == counter.get_total_flops()
     # The documented figure (docs/training.md): 0.283 GFLOP a forward pass.
     assert completion_flops(CompletionConfig()) == 283_314_176
+
+
+def test_planners_decide_when_the_views_saw_nothing():
+    """A flat object seen edge-on: an empty start view is completed from the origin, noted."""
+    from nbv.geometry.viewspace import get_viewspace
+    from nbv.policies.completion import NOTHING_SEEN
+    from nbv.policies.episode import captured_state
+
+    poses = np.stack([look_at(p) for p in get_viewspace("original")])
+    state = captured_state(poses, [np.zeros((0, 3))] * len(poses), [1])
+    blob = np.random.default_rng(0).normal(size=(300, 3)) * 0.2
+
+    def complete(cloud):
+        assert len(cloud) == 1  # the origin
+        return blob
+
+    gain = CompletionGainPolicy(complete, CAMERA)
+    assert 0 <= gain(state) < len(poses) and NOTHING_SEEN in gain.notes
+    hull = CompletionHullPolicy(rng=np.random.default_rng(0), intrinsics=CAMERA, complete=complete)
+    views = hull(state)
+    assert len(views) == 9 and 1 not in views and NOTHING_SEEN in hull.notes

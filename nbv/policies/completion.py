@@ -34,7 +34,7 @@ from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import angular_distances, unit_directions
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull_sco import HullSCOPolicy
-from nbv.policies.inputs import record_time
+from nbv.policies.inputs import cloud_or_origin, record_time
 
 #: A completion: (N, 3) captured points -> (M, 3) points on the whole surface.
 Completion = Callable[[np.ndarray], np.ndarray]
@@ -45,6 +45,16 @@ RULES = ("visibility", "authors")
 OCCLUDERS_PER_POINT = 2
 #: Hidden-point removal's radius, in diameters of the cloud (the authors' setting).
 HPR_RADIUS = 100.0
+#: The note of a decision whose captured views saw nothing.
+NOTHING_SEEN = "the views saw nothing: completed from the origin alone"
+
+
+def predict(complete: Completion, captured: np.ndarray, notes: list[str]) -> np.ndarray:
+    """(M, 3) float64 the completion of ``captured`` (N, 3); of the origin alone (and a note)
+    when the captured views saw nothing."""
+    if len(captured) == 0:
+        notes.append(NOTHING_SEEN)
+    return np.asarray(complete(cloud_or_origin(captured)), dtype=np.float64)
 
 
 def occluders(cloud: np.ndarray, n_predicted: int) -> np.ndarray:
@@ -170,7 +180,7 @@ class CompletionGainPolicy:
         """(V,) each view's count of predicted points newly seen (-inf for visited views)."""
         t0 = time.perf_counter()
         captured = state.cloud().astype(np.float64)
-        predicted = np.asarray(self.complete(captured), dtype=np.float64)
+        predicted = predict(self.complete, captured, self.notes)
         t1 = time.perf_counter()
         poses = state.views.poses
         if self.rule == "visibility":
@@ -205,8 +215,8 @@ class CompletionHullPolicy(HullSCOPolicy):
         if self.complete is None:
             raise ValueError("CompletionHullPolicy needs a completion (complete=...)")
         t0 = time.perf_counter()
-        cloud = np.asarray(cloud, dtype=np.float64)
-        predicted = np.asarray(self.complete(cloud), dtype=np.float64)
+        predicted = predict(self.complete, np.asarray(cloud, dtype=np.float64), self.notes)
+        cloud = np.asarray(cloud_or_origin(cloud), dtype=np.float64)
         record_time(self.timings, "completion", time.perf_counter() - t0)
         return np.concatenate([cloud, predicted])
 
