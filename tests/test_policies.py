@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 
 import numpy as np
 import pytest
@@ -15,13 +16,18 @@ import nbv.dataset
 from nbv.geometry.viewspace import get_viewspace
 from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
+from nbv.policies.completion import (
+    CompletionGainPolicy,
+    CompletionHullPolicy,
+    CompletionHullReplanPolicy,
+)
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, reads_ground_truth, run_episode
 from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import METHODS, SHIPPED_SCORER, MethodContext
+from nbv.policies.registry import METHODS, SHIPPED_SCORER, MethodContext, completion_of
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.view_matching import MatchedNetworkPolicy
 from nbv.policies.volumetric import InformationGainPolicy
@@ -116,7 +122,19 @@ def all_policies(networks, seed: int = 0) -> dict:
         "ig_proximity": InformationGainPolicy(
             dataclasses.replace(VOLUMETRIC, metric="proximity_count"), SMALL_CAMERA
         ),
+        "completion_hull_sco": CompletionHullPolicy(rng(seed), complete=_completer(), **hull),
+        "completion_hull_sco_replan": CompletionHullReplanPolicy(
+            rng(seed), complete=_completer(), **hull
+        ),
+        "completion_gain": CompletionGainPolicy(_completer(), SMALL_CAMERA),
+        "completion_gain_authors": CompletionGainPolicy(_completer(), SMALL_CAMERA, "authors"),
     }
+
+
+@functools.cache
+def _completer():
+    """The shipped completion network, loaded once for the module's tests."""
+    return completion_of(MethodContext({}, HullSettings(), SMALL_CAMERA, 0.02, 10))
 
 
 @pytest.mark.parametrize("viewspace", ["original", "permuted"])
@@ -372,7 +390,7 @@ def test_policies_other_than_the_oracle_read_only_the_captured_views(model, netw
     # A policy is given no ground truth (the state has none) and would pick otherwise on the
     # blinded views if it read the points of a view it has not captured.
     names = [m for m in METHODS if not METHODS[m].ground_truth]
-    assert len(names) == 22
+    assert len(names) == 26
     for name in names:
         for start in (27, 4):
             a = run_episode(model, "original", start, all_policies(networks, 1)[name])

@@ -22,7 +22,6 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import original_viewspace
 from nbv.infogain.gain_scorer import GainScorer, load_scorer
 from nbv.infogain.settings import VolumetricSettings
-from nbv.models.completion_inference import Completer
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.completion import (
     Completion,
@@ -96,6 +95,9 @@ def completion_of(ctx: MethodContext) -> Completion:
     if ctx.completion is not None:
         return ctx.completion
     if "completion" not in ctx.loaded:
+        # Imported here: torch is heavy, and settings and listings read this module without it.
+        from nbv.models.completion_inference import Completer
+
         path = shipped_weights(COMPLETION_WEIGHTS)
         if path is None:
             raise ValueError(f"no completion network shipped ({COMPLETION_WEIGHTS}.pt)")
