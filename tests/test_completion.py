@@ -305,3 +305,13 @@ def test_planners_decide_when_the_views_saw_nothing():
     hull = CompletionHullPolicy(rng=np.random.default_rng(0), intrinsics=CAMERA, complete=complete)
     views = hull(state)
     assert len(views) == 9 and 1 not in views and NOTHING_SEEN in hull.notes
+
+
+def test_near_and_fill_in_keep_what_the_capture_lacks():
+    from nbv.geometry.clouds import fill_in, near
+
+    captured = np.array([[0.0, 0, 0], [1.0, 0, 0]])
+    predicted = np.array([[0.05, 0, 0], [0.5, 0, 0], [1.0, 0.1, 0]])
+    np.testing.assert_array_equal(near(captured, predicted, 0.1), [True, False, True])
+    assert not near(np.zeros((0, 3)), predicted, 1.0).any()
+    np.testing.assert_array_equal(fill_in(captured, predicted, 0.1), [*captured, [0.5, 0, 0]])

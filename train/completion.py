@@ -170,7 +170,7 @@ def validate(
     for k in range(1, 6):
         row[f"val_cd_fine_{k}v"] = (
             float(fine_all[views_all == k].mean()) if (views_all == k).any() else float("nan")
-        )  # noqa: E501
+        )
     return row
 
 

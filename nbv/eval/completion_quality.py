@@ -25,6 +25,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
+from nbv.geometry.clouds import near
 from nbv.geometry.viewspace import spread_views, unit_directions
 from nbv.utils.markdown import md_table
 from nbv.utils.seeding import named_rng
@@ -179,7 +180,7 @@ def quality_rows(
             d_part_gt, d_net_gt = _nearest(partial, gt_tree), _nearest(net, gt_tree)
             d_gt_part, d_gt_net = _nearest(gt, cKDTree(partial)), _nearest(gt, cKDTree(net))
             # The completed cloud: the capture and the predictions it lacks (fill_in).
-            far = _nearest(net, cKDTree(partial)) > fill
+            far = ~near(partial, net, fill)
             d_gt_net_far = (
                 _nearest(gt, cKDTree(net[far])) if far.any() else np.full(len(gt), np.inf)
             )

@@ -33,19 +33,27 @@ def farthest_points(points: np.ndarray, n: int) -> np.ndarray:
     return points[fpsample.bucket_fps_kdline_sampling(coords, n, height, start_idx=0)]
 
 
+def near(captured: np.ndarray, points: np.ndarray, distance: float) -> np.ndarray:
+    """(M,) bool: each of ``points`` (M, 3) lies within ``distance`` of a point of ``captured``
+    (N, 3); all False when ``captured`` is empty."""
+    from scipy.spatial import cKDTree
+
+    if len(captured) == 0:
+        return np.zeros(len(points), dtype=bool)
+    d, _ = cKDTree(np.asarray(captured, dtype=np.float64)).query(
+        np.asarray(points, dtype=np.float64), distance_upper_bound=distance
+    )
+    return d <= distance
+
+
 def fill_in(captured: np.ndarray, predicted: np.ndarray, distance: float) -> np.ndarray:
     """The captured cloud completed by the predicted points it lacks: ``captured`` (N, 3) and
     the points of ``predicted`` (M, 3) farther than ``distance`` from every captured point, in
     that order ((N + K, 3) float64). A prediction near the capture adds nothing the capture has
     not, and is less accurate than it."""
-    from scipy.spatial import cKDTree
-
     captured = np.asarray(captured, dtype=np.float64)
     predicted = np.asarray(predicted, dtype=np.float64)
-    if len(captured) == 0:
-        return predicted
-    d, _ = cKDTree(captured).query(predicted, distance_upper_bound=distance)
-    return np.concatenate([captured, predicted[d > distance]])
+    return np.concatenate([captured, predicted[~near(captured, predicted, distance)]])
 
 
 def random_subset(points: np.ndarray, keep: int, rng: np.random.Generator) -> np.ndarray:

@@ -29,6 +29,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from nbv.geometry.camera import Intrinsics
+from nbv.geometry.clouds import near
 from nbv.geometry.point_visibility import SplatSettings, cloud_spacing, visible_points
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import angular_distances, unit_directions
@@ -92,9 +93,7 @@ def visibility_gains(
     points = np.concatenate([predicted, occluders(captured, len(predicted))])
     sizes = (splat.cell * spacing, splat.tolerance * spacing, splat.hole * spacing)
     seen = visible_points(points, poses, intrinsics, *sizes)[:, : len(predicted)]
-    already = seen[visited].any(axis=0)
-    if len(captured):
-        already |= cKDTree(captured).query(predicted, distance_upper_bound=eps)[0] <= eps
+    already = seen[visited].any(axis=0) | near(captured, predicted, eps)
     return (seen & ~already).sum(axis=1)
 
 
@@ -113,12 +112,9 @@ def authors_gains(
     """
     import open3d as o3d  # heavy: only this rule needs it
 
-    d, _ = (
-        cKDTree(captured).query(predicted)
-        if len(captured)
-        else (np.full(len(predicted), np.inf), None)
-    )  # noqa: E501
-    new = np.asarray(predicted, dtype=np.float64)[d >= eps]
+    new = np.asarray(predicted, dtype=np.float64)
+    if len(captured):  # the authors keep the points at distance >= eps
+        new = new[cKDTree(captured).query(new)[0] >= eps]
     gains = np.zeros(len(positions), dtype=np.int64)
     if len(new) < 4:  # hidden-point removal's hull needs four points
         return gains
