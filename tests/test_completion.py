@@ -311,7 +311,10 @@ def test_near_and_fill_in_keep_what_the_capture_lacks():
     from nbv.geometry.clouds import fill_in, near
 
     captured = np.array([[0.0, 0, 0], [1.0, 0, 0]])
-    predicted = np.array([[0.05, 0, 0], [0.5, 0, 0], [1.0, 0.1, 0]])
-    np.testing.assert_array_equal(near(captured, predicted, 0.1), [True, False, True])
+    predicted = np.array([[0.05, 0, 0], [0.5, 0, 0], [1.0, 0.09, 0], [1.0, 0.1, 0]])
+    # At exactly the distance a point is not near (scipy's bound is strict).
+    np.testing.assert_array_equal(near(captured, predicted, 0.1), [True, False, True, False])
     assert not near(np.zeros((0, 3)), predicted, 1.0).any()
-    np.testing.assert_array_equal(fill_in(captured, predicted, 0.1), [*captured, [0.5, 0, 0]])
+    np.testing.assert_array_equal(
+        fill_in(captured, predicted, 0.1), [*captured, [0.5, 0, 0], [1.0, 0.1, 0]]
+    )

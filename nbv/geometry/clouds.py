@@ -34,8 +34,9 @@ def farthest_points(points: np.ndarray, n: int) -> np.ndarray:
 
 
 def near(captured: np.ndarray, points: np.ndarray, distance: float) -> np.ndarray:
-    """(M,) bool: each of ``points`` (M, 3) lies within ``distance`` of a point of ``captured``
-    (N, 3); all False when ``captured`` is empty."""
+    """(M,) bool: each of ``points`` (M, 3) lies nearer than ``distance`` to a point of
+    ``captured`` (N, 3) (scipy's ``distance_upper_bound`` is strict); all False when
+    ``captured`` is empty."""
     from scipy.spatial import cKDTree
 
     if len(captured) == 0:
@@ -48,7 +49,7 @@ def near(captured: np.ndarray, points: np.ndarray, distance: float) -> np.ndarra
 
 def fill_in(captured: np.ndarray, predicted: np.ndarray, distance: float) -> np.ndarray:
     """The captured cloud completed by the predicted points it lacks: ``captured`` (N, 3) and
-    the points of ``predicted`` (M, 3) farther than ``distance`` from every captured point, in
+    the points of ``predicted`` (M, 3) at ``distance`` or more from every captured point, in
     that order ((N + K, 3) float64). A prediction near the capture adds nothing the capture has
     not, and is less accurate than it."""
     captured = np.asarray(captured, dtype=np.float64)
