@@ -299,8 +299,9 @@ def test_seeded_runs_repeat_and_seeds_matter(tiny, tmp_path):
 
 
 @pytest.mark.slow
-def test_a_missing_checkpoint_takes_the_shipped_weights_and_a_wrong_one_is_skipped(tiny, tmp_path):
+def test_a_missing_checkpoint_takes_the_shipped_weights_and_a_wrong_one_refuses(tiny, tmp_path):
     from nbv.assets.weights import shipped_weights
+    from nbv.eval.inputs import EvalDataError
 
     missing = tmp_path / "nowhere" / "best.pt"
     settings = tiny_settings(
@@ -308,16 +309,19 @@ def test_a_missing_checkpoint_takes_the_shipped_weights_and_a_wrong_one_is_skipp
         viewspaces=("original",), start_views=(1,), disturb_start_views=(1,),
         checkpoints={"pcnbv": str(missing), "pcnbv_sph": str(tiny["pcnbv"])}, plots=False,
     )  # fmt: skip
+    # A file that is there but holds the wrong network is an error, never a skip.
+    with pytest.raises(EvalDataError, match="checkpoints.pcnbv_sph: .* not signature"):
+        run(settings)
+    assert not (tmp_path / "out").exists()
+    settings = replace(settings, methods=("random", "pcnbv", "hull_sco"))
     run(settings)
     data = json.loads((tmp_path / "out" / "results.json").read_text())
-    assert set(data["skipped"]) == {"pcnbv_sph"}
-    assert "not signature" in data["skipped"]["pcnbv_sph"]  # a points network given for sph
+    assert data["skipped"] == {}
     assert {e["method"] for e in data["episodes"]} == {"random", "pcnbv", "hull_sco"}
     noise = {f"position_noise_{x}" for x in ("0.002", "0.005", "0.01")}
     checks = {None, "random_hull", "random_cloud", "permuted_state"} | noise
     assert {e["check"] for e in data["episodes"]} == checks
     report = (tmp_path / "out" / "report.md").read_text()
-    assert "Skipped methods" in report and "not signature" in report
     assert f"`pcnbv` from `{shipped_weights('pcnbv')}` (the weights the package ships" in report
     # Without the fallback (evaluate alone) a missing checkpoint is skipped, naming the path.
     bare = evaluate(replace(settings, run="bare", disturb=DisturbSettings(checks=())))
@@ -340,14 +344,15 @@ def test_a_method_led_by_a_network_loads_it_and_is_skipped_without_it(tiny, tmp_
         tiny_settings(tiny, tmp_path / "alone", **{**kw, "methods": ("vig_hull_sco",)})
     )
     assert [r.views for r in alone.records] == [r.views for r in led]
-    # A points network given for it: the method it leads is skipped, saying why.
+    # A points network given for it: the run is refused, saying why (never a skip).
     wrong = {"pcnbv_sph_vig": str(tiny["pcnbv"])}
-    ev = evaluate(tiny_settings(tiny, tmp_path / "wrong", **kw, checkpoints=wrong))
-    assert ev.skipped["pcnbv_sph_vig"].endswith("holds a network on points, not signature")
-    assert ev.skipped["vig_hull_sco"] == (
-        f"the network of pcnbv_sph_vig it runs: {ev.skipped['pcnbv_sph_vig']}"
-    )
-    assert ev.records == []
+    with pytest.raises(EvalDataError, match="holds a network on points, not signature"):
+        evaluate(tiny_settings(tiny, tmp_path / "wrong", **kw, checkpoints=wrong))
+    # A checkpoint that is not there (a default path with nothing shipped behind it) is
+    # skipped, and so is the method it leads; with nothing left to run, the run is refused.
+    gone = {"pcnbv_sph_vig": str(tmp_path / "nowhere.pt")}
+    with pytest.raises(EvalDataError, match=r"no episode can run \(.*nowhere.pt"):
+        evaluate(tiny_settings(tiny, tmp_path / "gone", **kw, checkpoints=gone))
     with pytest.raises(EvalConfigError, match=r"checkpoints: no entry for \['pcnbv_sph_vig'\]"):
         tiny_settings(
             tiny, tmp_path / "none", checkpoints={}, **{**kw, "methods": ("vig_hull_sco",)}

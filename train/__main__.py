@@ -16,6 +16,8 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 
 from nbv.config.cli import command
+from nbv.utils.atomic import write_text
+from nbv.utils.lock import one_writer
 from train.config import ENTRY, TrainSettings
 
 PROG = "train"
@@ -42,8 +44,11 @@ def start(cfg) -> tuple[TrainSettings, dict]:
 
     # Point hydra's job folder at the run folder, so `train.summary folder=<sweep dir>` finds it.
     job_dir.mkdir(parents=True, exist_ok=True)
-    (job_dir / RUN_FILE).write_text(json.dumps({"out_dir": str(settings.out_dir.resolve())}))
-    return settings, run(settings)
+    pointer, text = job_dir / RUN_FILE, json.dumps({"out_dir": str(settings.out_dir.resolve())})
+    if not pointer.is_file() or pointer.read_text() != text:  # a resumed run's stays as it was
+        write_text(pointer, text)
+    with one_writer(settings.out_dir, "training run folder"):
+        return settings, run(settings)
 
 
 def finish(started: tuple[TrainSettings, dict]) -> None:

@@ -299,8 +299,11 @@ def run(settings: CompletionSettings) -> dict:
 
 
 def _start(cfg) -> tuple[CompletionSettings, dict]:
+    from nbv.utils.lock import one_writer
+
     settings = ENTRY.build(cfg)
-    return settings, run(settings)
+    with one_writer(settings.out_dir, "completion training run folder"):
+        return settings, run(settings)
 
 
 def _finish(started: tuple[CompletionSettings, dict]) -> None:

@@ -33,12 +33,12 @@ from tqdm import tqdm
 
 from nbv.assets.categories import TRAIN_CATEGORIES
 from nbv.assets.meshes import sample_surface
+from nbv.dataset.schema import hdf5_written
 from nbv.dataset.sources import SourceModel, list_models, load_normalised
 from nbv.geometry.camera import Intrinsics, backproject, valid_depth, viewspace_poses
 from nbv.geometry.clouds import farthest_points
 from nbv.geometry.raycast import raycast_depth
 from nbv.geometry.viewspace import get_viewspace
-from nbv.utils.atomic import atomic_path
 from nbv.utils.seeding import named_rng
 
 #: The dataset camera's field of view (640 x 480, f = 476) at a quarter of its resolution.
@@ -152,7 +152,7 @@ def make_shards(out_dir: Path, settings: DataSettings, progress: bool = True) ->
             check_shard(path, settings)
             continue
         mine = everything[shard :: settings.shards]
-        with atomic_path(path) as tmp, h5py.File(tmp, "w") as f:
+        with hdf5_written(path) as f:
             f.attrs.update(_attrs(settings))
             for model in tqdm(mine, desc=path.name, unit="model", disable=not progress):
                 group = f.create_group(model.key)

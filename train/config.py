@@ -10,6 +10,7 @@ identity that resuming compares.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 from dataclasses import dataclass, field
@@ -55,11 +56,10 @@ def validation_views(dataset: Path) -> int:
 
     shards = sorted(Path(dataset).glob(SHARD_GLOB)) if Path(dataset).is_dir() else []
     for shard in shards[:1]:
-        try:
+        # A shard that cannot be read is refused, naming it, when the run reads the dataset.
+        with contextlib.suppress(OSError, KeyError, TypeError):
             with h5py.File(shard, "r") as handle:
                 return len(handle["viewspaces/original"])
-        except (OSError, KeyError):
-            pass
     return len(get_viewspace("original"))
 
 

@@ -14,6 +14,7 @@ import json
 from pathlib import Path
 
 import nbv.dataset
+from nbv.utils.artefacts import read_csv
 from nbv.utils.atomic import atomic_path
 
 
@@ -28,11 +29,8 @@ def append_csv_rows(path: Path, new: list[dict]) -> None:
     """Append one epoch's rows, each with the same ``epoch`` (replacing the rows of that epoch
     and later ones, as a resumed run writes them again), rewriting the header when new columns
     appear."""
-    rows = []
-    if path.exists():
-        with open(path, newline="") as handle:
-            rows = list(csv.DictReader(handle))
-    rows = [r for r in rows if int(r["epoch"]) < new[0]["epoch"]] + new
+    rows = read_csv(path, "training metrics file", numeric=("epoch",)) if path.exists() else []
+    rows = [r for r in rows if int(float(r["epoch"])) < new[0]["epoch"]] + new
     columns = list(dict.fromkeys(k for r in rows for k in r))
     with atomic_path(path) as tmp, open(tmp, "w", newline="") as handle:
         writer = csv.DictWriter(handle, columns)

@@ -19,6 +19,7 @@ from nbv.dataset.reader import shard_files
 from nbv.dataset.samples import samples_path
 from nbv.models.checkpoints import CheckpointError, load_checkpoint, save_checkpoint
 from nbv.models.precision import resolve_precision
+from nbv.utils.artefacts import read_csv
 from train.config import TrainConfigError, TrainSettings, stored_settings
 
 #: Settings that may differ on resumption: they do not change the numbers of the epochs run.
@@ -115,6 +116,14 @@ def resume_state(out_dir: Path, identity: dict, model, optimizer, scheduler) -> 
         return 0, -np.inf
     saved, extra = load_checkpoint(last, n_views=model.config.n_views)
     check_resumable(out_dir, extra.get("run_identity"), identity)
+    done = int(extra["epoch"]) + 1
+    rows = read_csv(out_dir / "metrics.csv", "training metrics file", numeric=("epoch",))
+    missing = sorted(set(range(1, done + 1)) - {int(float(r["epoch"])) for r in rows})
+    if missing:
+        raise TrainConfigError(
+            f"{out_dir / 'metrics.csv'}: no rows for epochs {missing}, which {last} has trained; "
+            "the run's record is incomplete. Set a new out_dir=..., or resume=false to start afresh"
+        )
     if saved.config != model.config:
         raise CheckpointError(
             f"checkpoint {last} holds another network ({saved.config}); set out_dir=... or "

@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import logging
 from collections import defaultdict
 from dataclasses import dataclass, field
@@ -40,6 +39,7 @@ from nbv.config.cli import command  # noqa: E402
 from nbv.config.schema import PathsConfig  # noqa: E402
 from nbv.config.settings import Entry  # noqa: E402
 from nbv.policies.registry import BASELINES, METHODS  # noqa: E402
+from nbv.utils.artefacts import check_array, read_json, reading  # noqa: E402
 from nbv.utils.atomic import write_text  # noqa: E402
 from nbv.utils.markdown import md_table  # noqa: E402
 from nbv.utils.stats import bootstrap_mean  # noqa: E402
@@ -79,7 +79,7 @@ def find_runs(folder: Path) -> list[Path]:
     """Run folders (holding ``heldout.json``) under ``folder``, directly or through ``run.json``."""
     runs = {p.parent.resolve() for p in folder.rglob(HELDOUT_FILE)}
     for pointer in folder.rglob("run.json"):
-        target = Path(json.loads(pointer.read_text())["out_dir"])
+        target = Path(str(read_json(pointer, "run pointer", ("out_dir",))["out_dir"]))
         if (target / HELDOUT_FILE).exists():
             runs.add(target.resolve())
     return sorted(runs)
@@ -87,21 +87,34 @@ def find_runs(folder: Path) -> list[Path]:
 
 def read_run(run: Path) -> dict:
     """Model, score, fold, the chosen epoch and the held-out episodes of one run folder."""
-    settings = json.loads((run / "settings.json").read_text())
-    heldout = json.loads((run / HELDOUT_FILE).read_text())
-    return {
-        "run": str(run),
-        "model": settings["model_name"],
-        "score": settings["score"],
-        "fold": int(settings["fold"]),
-        "held_out": heldout["held_out"],
-        "select": heldout["checkpoint"]["select"],
-        "epoch": int(heldout["checkpoint"]["epoch"]) + 1,
-        "keys": [f"{heldout['held_out']}/{k}" for k, _ in heldout["episodes"]],
-        "auc": {m: np.asarray(heldout["auc"][m]) for m in HELDOUT_METHODS},
-        "coverage": {m: np.asarray(heldout["coverage"][m]) for m in HELDOUT_METHODS},
-        "random_repeats": int(heldout["random_repeats"]),
-    }
+    settings_file, heldout_file = run / "settings.json", run / HELDOUT_FILE
+    settings = read_json(settings_file, "training run's settings",
+                         ("model_name", "score", "fold"))  # fmt: skip
+    heldout = read_json(heldout_file, "held-out evaluation",
+                        ("held_out", "checkpoint", "episodes", "auc", "coverage",
+                         "random_repeats"))  # fmt: skip
+    with reading(settings_file, "training run's settings"):
+        fold = int(settings["fold"])
+    with reading(heldout_file, "held-out evaluation"):
+        episodes = heldout["episodes"]
+        row = {
+            "run": str(run),
+            "model": str(settings["model_name"]),
+            "score": str(settings["score"]),
+            "fold": fold,
+            "held_out": heldout["held_out"],
+            "select": heldout["checkpoint"]["select"],
+            "epoch": int(heldout["checkpoint"]["epoch"]) + 1,
+            "keys": [f"{heldout['held_out']}/{k}" for k, _ in episodes],
+            "auc": {m: np.asarray(heldout["auc"][m], float) for m in HELDOUT_METHODS},
+            "coverage": {m: np.asarray(heldout["coverage"][m], float) for m in HELDOUT_METHODS},
+            "random_repeats": int(heldout["random_repeats"]),
+        }
+    for kind in ("auc", "coverage"):
+        for m, values in row[kind].items():
+            check_array(values, heldout_file, f"{kind}/{m}",
+                        (len(episodes),) if kind == "auc" else (len(episodes), None))  # fmt: skip
+    return row
 
 
 def _stats(keys: list[str], auc: dict[str, np.ndarray]) -> dict:
@@ -257,7 +270,8 @@ def _runs_of(folder: Path) -> list[Path]:
 def _start(cfg) -> SummarySettings:
     """The settings, and runs to summarise: nothing is written yet."""
     settings = ENTRY.build(cfg)
-    _runs_of(settings.folder)
+    for run in _runs_of(settings.folder):  # every run's files checked before anything is written
+        read_run(run)
     return settings
 
 

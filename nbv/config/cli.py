@@ -32,6 +32,8 @@ from hydra.errors import HydraException
 from omegaconf.errors import OmegaConfBaseException
 
 from nbv.config.schema import describe
+from nbv.utils.artefacts import out_of_space
+from nbv.utils.lock import OutputBusy
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +46,8 @@ T = TypeVar("T")
 HYDRA_FILES = ("config.yaml", "hydra.yaml", "overrides.yaml")
 #: Exit status of a refused run.
 REFUSED = 2
+#: Exit status of a run stopped by a full disk (or a file-size limit): EX_TEMPFAIL, "try again".
+NO_SPACE_STATUS = 75
 
 
 def _one_line(message: object) -> str:
@@ -54,6 +58,23 @@ def fail(prog: str, message: object) -> NoReturn:
     """Print ``<prog>: <message>`` (one line) on stderr and exit with status 2."""
     print(f"{prog}: {_one_line(message)}", file=sys.stderr)
     sys.exit(REFUSED)
+
+
+def stop_if_out_of_space(prog: str, err: BaseException) -> None:
+    """End the program with one line and :data:`NO_SPACE_STATUS` when ``err`` is a write that
+    ran out of room (:func:`~nbv.utils.artefacts.out_of_space`); return otherwise.
+
+    Every writer writes through a temporary file (:mod:`nbv.utils.atomic`), so what is under
+    its final name is whole, and the same command run again once there is room goes on from
+    where this one stopped."""
+    if not out_of_space(err):
+        return
+    where = getattr(err, "filename", None)
+    reason = getattr(err, "strerror", None) or _one_line(err)
+    print(f"{prog}: {where + ': ' if where else ''}{reason}; nothing half-written was kept: "
+          "free some space and run the same command again, it goes on from where it stopped",
+          file=sys.stderr)  # fmt: skip
+    sys.exit(NO_SPACE_STATUS)
 
 
 def entry_point(prog: str, hydra_main: Callable[[], object]) -> None:
@@ -191,8 +212,18 @@ def command(
             state = start(cfg)
         except ValueError as err:
             refuse(prog, err, scratch)
-        if finish is not None:
+        except (OSError, RuntimeError) as err:
+            stop_if_out_of_space(prog, err)
+            raise
+        if finish is None:
+            return
+        try:
             finish(state)
+        except OutputBusy as err:  # the work's own lock, taken as it starts writing
+            fail(prog, err)
+        except (OSError, RuntimeError) as err:
+            stop_if_out_of_space(prog, err)
+            raise
 
     # The job's name comes from each config's hydra.job.name, not from this module.
     main = hydra.main(config_path=CONF_DIR, config_name=config_name, version_base="1.3")(task)

@@ -45,6 +45,7 @@ from nbv.render.job import RenderError, RenderJob
 from nbv.render.noise import noisy_depth
 from nbv.render.preflight import check_blender
 from nbv.utils.fields import ConfigError
+from nbv.utils.lock import one_writer
 from nbv.utils.seeding import named_rng
 
 __all__ = [
@@ -231,6 +232,17 @@ def generate(settings: GeneratorSettings) -> Summary:
     name = shard_name(settings.shard, settings.num_shards)
     shard_file = out_dir / name
     parts_dir = out_dir / f".parts-{name[:-3]}"
+    # A second process on this shard (a requeued SLURM task whose first copy still runs) is
+    # refused, naming the first; a killed one's lock goes with it.
+    with one_writer(shard_file, "dataset shard"):
+        return _generate(settings, mine, shard_file, parts_dir)
+
+
+def _generate(
+    settings: GeneratorSettings, mine: list, shard_file: Path, parts_dir: Path
+) -> Summary:
+    """:func:`generate`'s work, under the shard's lock."""
+    out_dir, name = shard_file.parent, shard_file.name
     _check_identity(settings, shard_file, parts_dir)
     viewspaces = {n: get_viewspace(v) for n, v in settings.viewspaces.items()}
     poses = {n: viewspace_poses(vs) for n, vs in viewspaces.items()}
@@ -265,7 +277,7 @@ def generate(settings: GeneratorSettings) -> Summary:
     failed: dict[str, str] = {}
     with tempfile.TemporaryDirectory(prefix="nbv-render-") as workdir:
         results = render(
-            jobs(), settings.intrinsics, renderer.backend, Path(workdir), **render_options
+            jobs(), settings.intrinsics, settings.renderer.backend, Path(workdir), **render_options
         )
         for key, depth in results:
             try:

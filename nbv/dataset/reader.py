@@ -9,14 +9,81 @@ import h5py
 import numpy as np
 
 from nbv.dataset.records import ModelData
-from nbv.dataset.schema import ROOT_ATTRS, read_model
+from nbv.dataset.schema import ROOT_ATTRS, SCHEMA_VERSION, read_model
 from nbv.geometry.camera import Intrinsics
+from nbv.utils.artefacts import ArtefactError, check_array, reading
 
 SHARD_GLOB = "shard-*-of-*.h5"
+#: What a shard is, in a refusal.
+SHARD = "dataset shard"
 
 
-class DatasetError(ValueError):
+class DatasetError(ArtefactError):
     """A dataset that cannot be read; the message names the file."""
+
+    def __init__(self, message: str):
+        ValueError.__init__(self, message)
+
+
+def check_model(model: ModelData, file: Path, n_gt: int, viewspaces: dict[str, np.ndarray]) -> None:
+    """Refuse a model whose arrays do not fit the shard's contract (``docs/dataset.md``): the
+    ground truth ``(n_gt, 3)``, each viewspace's poses ``(V, 4, 4)``, offsets ``(V + 1,)`` that
+    rise to the number of points, coverage ``(V, ceil(n_gt / 8))``, all finite.
+
+    Raises:
+        ArtefactError: naming ``file``, the model and the array.
+    """
+    where = f"models/{model.key}"
+    check_array(model.gt_points, file, f"{where}/gt_points", (n_gt, 3))
+    for name, view in model.views.items():
+        n = len(viewspaces[name]) if name in viewspaces else None
+        at = f"{where}/views/{name}"
+        check_array(view.poses, file, f"{at}/poses", (n, 4, 4))
+        check_array(view.points, file, f"{at}/points", (None, 3))
+        check_array(view.coverage, file, f"{at}/coverage", (n, (n_gt + 7) // 8))
+        for offsets, points in ((view.offsets, view.points), (view.hull_offsets, view.hull_points)):
+            check_array(offsets, file, f"{at}/offsets", (len(view.poses) + 1,))
+            if offsets[0] != 0 or np.any(np.diff(offsets) < 0) or offsets[-1] != len(points):
+                raise ArtefactError(file, f"{at}: offsets do not index its {len(points)} points",
+                                    "0, rising, up to the number of points")  # fmt: skip
+
+
+#: A view group's arrays and their shapes; V = the viewspace's views, N = any (docs/dataset.md).
+VIEW_ARRAYS = {
+    "poses": ("V", 4, 4),
+    "points": ("N", 3),
+    "offsets": ("V+1",),
+    "coverage": ("V", "bits"),
+    "hull_points": ("N", 3),
+    "hull_offsets": ("V+1",),
+}
+
+
+def _check_layout(group: h5py.Group, file: Path, n_gt: int, viewspaces: dict) -> None:
+    """Refuse a model group that lacks an array or holds one of the wrong shape (read from the
+    file's metadata, not its data: cheap enough to do for every model when a dataset opens)."""
+    where = group.name.lstrip("/")
+
+    def shape_of(name: str) -> tuple[int, ...]:
+        if name not in group or not isinstance(group[name], h5py.Dataset):
+            raise ArtefactError(file, f"{where}/{name} is missing", "the arrays of docs/dataset.md")
+        return group[name].shape
+
+    def want(name: str, shape: tuple) -> None:
+        found = shape_of(name)
+        if len(found) != len(shape) or any(
+            n is not None and n != f for n, f in zip(shape, found, strict=False)
+        ):
+            raise ArtefactError(file, f"{where}/{name} has shape {found}", f"shape {shape}")
+
+    want("gt_points", (n_gt, 3))
+    if "views" not in group:
+        raise ArtefactError(file, f"{where}/views is missing", "one group per viewspace")
+    for name in group["views"]:
+        n = len(viewspaces[name]) if name in viewspaces else None
+        sizes = {"V": n, "V+1": None if n is None else n + 1, "N": None, "bits": (n_gt + 7) // 8}
+        for array, shape in VIEW_ARRAYS.items():
+            want(f"views/{name}/{array}", tuple(sizes.get(d, d) for d in shape))
 
 
 class Dataset:
@@ -43,18 +110,22 @@ class Dataset:
             self._add(file)
 
     def _add(self, file: Path) -> None:
-        try:
-            handle = h5py.File(file, "r")
-        except OSError as err:
-            raise DatasetError(f"{file}: not a readable HDF5 file ({err})") from err
-        with handle:
+        with reading(file, SHARD), h5py.File(file, "r") as handle:
             missing = [name for name in ROOT_ATTRS if name not in handle.attrs]
             if missing:
                 raise DatasetError(f"{file}: not a dataset shard, root attributes {missing} absent")
             attrs = {name: _plain(value) for name, value in handle.attrs.items()}
+            if attrs["schema_version"] != SCHEMA_VERSION:
+                raise DatasetError(
+                    f"{file}: schema_version {attrs['schema_version']!r}; this code reads "
+                    f"version {SCHEMA_VERSION} (docs/dataset.md); remake it with make dataset"
+                )
             if not self.attrs:
                 self.attrs = attrs
-                self.viewspaces = {k: v[()] for k, v in handle["viewspaces"].items()}
+                self.viewspaces = {
+                    k: check_array(v[()], file, f"viewspaces/{k}", (None, 3))
+                    for k, v in handle["viewspaces"].items()
+                }
             else:
                 differ = [k for k in ROOT_ATTRS if attrs[k] != self.attrs[k]]
                 if differ:
@@ -63,6 +134,7 @@ class Dataset:
                         "dataset must be generated with the same settings"
                     )
             for key, group in handle.get("models", {}).items():
+                _check_layout(group, file, int(attrs["n_gt"]), self.viewspaces)
                 if key in self.index:
                     raise DatasetError(f"{file}: model {key!r} also in {self.index[key][0]}")
                 self.index[key] = (file, str(group.attrs["category"]), str(group.attrs["split"]))
@@ -85,8 +157,11 @@ class Dataset:
         """Read one model (all viewspaces unless named)."""
         if key not in self.index:
             raise KeyError(f"model {key!r} is not in this dataset ({len(self)} models)")
-        with h5py.File(self.index[key][0], "r") as handle:
-            return read_model(handle[f"models/{key}"], viewspaces)
+        file = self.index[key][0]
+        with reading(file, SHARD), h5py.File(file, "r") as handle:
+            model = read_model(handle[f"models/{key}"], viewspaces)
+        check_model(model, file, int(self.attrs["n_gt"]), self.viewspaces)
+        return model
 
     def keys(self, split: str | None = None, category: str | None = None) -> list[str]:
         """Model keys, optionally only of one split and/or category."""

@@ -48,13 +48,14 @@ import h5py
 import numpy as np
 from tqdm import tqdm
 
-from nbv.dataset.reader import Dataset, DatasetError, shard_files
+from nbv.dataset.reader import SHARD, Dataset, DatasetError, shard_files
 from nbv.dataset.records import SCORES, ModelData, score_functions
-from nbv.dataset.schema import write_strings
+from nbv.dataset.schema import hdf5_written, write_strings
 from nbv.geometry.clouds import farthest_points
 from nbv.geometry.hull import QhullFailure
 from nbv.geometry.sph import signature
-from nbv.utils.atomic import atomic_path
+from nbv.utils.artefacts import ArtefactError, check_array, reading
+from nbv.utils.lock import one_writer
 from nbv.utils.seeding import named_rng
 from nbv.utils.selection import masked_argmax
 
@@ -205,7 +206,18 @@ def write_samples(
 
     Returns:
         The samples file and the (key, score, reason) of skipped model/score pairs.
+
+    Raises:
+        OutputBusy: another process is writing this samples file.
     """
+    with one_writer(samples_path(shard_file), "samples file"):
+        return _write_samples(shard_file, settings, progress, workers)
+
+
+def _write_samples(
+    shard_file: Path, settings: SampleSettings, progress: bool, workers: int
+) -> tuple[Path, list[tuple[str, str, str]]]:
+    """:func:`write_samples`' work, under the samples file's lock."""
     dataset = Dataset([shard_file])
     if settings.viewspace not in dataset.viewspaces:
         raise DatasetError(
@@ -230,30 +242,29 @@ def write_samples(
                 a["model"] = np.full(len(a["step"]), index, dtype=np.int32)
                 collected[score].append(a)
     out = samples_path(shard_file)
-    with atomic_path(out) as tmp:
-        with h5py.File(tmp, "w") as handle:
-            attrs = asdict(settings)
-            attrs["scores"] = list(settings.scores)
-            handle.attrs.update(attrs)
-            handle.attrs.update(
-                schema_version=SCHEMA_VERSION,
-                dataset=shard_file.name,
-                # The targets come from the shard's coverage bits: a shard remade with another
-                # eps makes these samples stale (samples_up_to_date, load_samples).
-                dataset_eps=float(dataset.attrs["eps"]),
-                n_views=len(dataset.viewspaces[settings.viewspace]),
-            )
-            write_strings(handle, "models/key", keys)
-            write_strings(handle, "models/category", [dataset.index[k][1] for k in keys])
-            write_strings(handle, "models/split", [dataset.index[k][2] for k in keys])
-            write_strings(handle, "skipped", [list(s) for s in skipped], columns=3)
-            for score, parts in collected.items():
-                group = handle.create_group(score)
-                if not parts:
-                    continue
-                for name in parts[0]:
-                    data = np.concatenate([p[name] for p in parts])
-                    group.create_dataset(name, data=data, compression="gzip", shuffle=True)
+    with hdf5_written(out) as handle:
+        attrs = asdict(settings)
+        attrs["scores"] = list(settings.scores)
+        handle.attrs.update(attrs)
+        handle.attrs.update(
+            schema_version=SCHEMA_VERSION,
+            dataset=shard_file.name,
+            # The targets come from the shard's coverage bits: a shard remade with another
+            # eps makes these samples stale (samples_up_to_date, load_samples).
+            dataset_eps=float(dataset.attrs["eps"]),
+            n_views=len(dataset.viewspaces[settings.viewspace]),
+        )
+        write_strings(handle, "models/key", keys)
+        write_strings(handle, "models/category", [dataset.index[k][1] for k in keys])
+        write_strings(handle, "models/split", [dataset.index[k][2] for k in keys])
+        write_strings(handle, "skipped", [list(s) for s in skipped], columns=3)
+        for score, parts in collected.items():
+            group = handle.create_group(score)
+            if not parts:
+                continue
+            for name in parts[0]:
+                data = np.concatenate([p[name] for p in parts])
+                group.create_dataset(name, data=data, compression="gzip", shuffle=True)
     return out, skipped
 
 
@@ -305,10 +316,33 @@ class SampleSet:
         return SampleSet(**arrays, attrs=self.attrs)
 
 
+#: The arrays of one score's samples, in a samples file's ``/<score>/`` group.
+SAMPLE_ARRAYS = ("model", "points", "signature", "view_state", "target", "value", "trajectory",
+                 "step")  # fmt: skip
+#: What a samples file is, in a refusal.
+SAMPLES = "samples file"
+
+
+def _check_samples(file: Path, score: str, arrays: dict[str, np.ndarray], n_models: int) -> None:
+    """Refuse a score's samples whose arrays disagree in length or shape, hold NaN or name a
+    model the file does not list."""
+    n = len(arrays["step"])
+    views = arrays["view_state"].shape[1] if arrays["view_state"].ndim == 2 else None
+    shapes = {"model": (n,), "points": (n, None, 3), "signature": (n, None, 3),
+              "view_state": (n, views), "target": (n, views), "value": (n,),
+              "trajectory": (n,), "step": (n,)}  # fmt: skip
+    for name, shape in shapes.items():
+        check_array(arrays[name], file, f"{score}/{name}", shape)
+    if n and (arrays["model"].min() < 0 or arrays["model"].max() >= n_models):
+        raise ArtefactError(file, f"{score}/model names models outside the {n_models} listed")
+
+
 def _check_samples_eps(shard_file: Path, file: Path) -> None:
     """Refuse samples whose targets were computed from a shard made with another eps."""
-    with h5py.File(file, "r") as handle, h5py.File(shard_file, "r") as shard:
-        made, now = handle.attrs.get("dataset_eps"), float(shard.attrs["eps"])
+    with reading(file, SAMPLES), h5py.File(file, "r") as handle:
+        made = handle.attrs.get("dataset_eps")
+    with reading(shard_file, SHARD), h5py.File(shard_file, "r") as shard:
+        now = float(shard.attrs["eps"])
     # Files from before dataset_eps was recorded carry no eps to compare.
     if made is not None and float(made) != now:
         raise DatasetError(
@@ -332,25 +366,25 @@ def load_samples(path: str | Path, score: str) -> SampleSet:
     parts: dict[str, list] = {}
     attrs: dict = {}
     for file in files:
-        with h5py.File(file, "r") as handle:
+        with reading(file, SAMPLES), h5py.File(file, "r") as handle:
+            if "models" not in handle or "schema_version" not in handle.attrs:
+                raise ArtefactError(
+                    file, "not a samples file (no models, no schema_version)",
+                    "the samples file make dataset writes beside its shard",
+                )  # fmt: skip
             attrs = attrs or {k: v for k, v in handle.attrs.items()}
             if score not in handle or "step" not in handle[score]:
                 continue
-            group = handle[score]
-            rows = group["model"][()]
-            for name in (
-                "points",
-                "signature",
-                "view_state",
-                "target",
-                "value",
-                "trajectory",
-                "step",
-            ):
-                parts.setdefault(name, []).append(group[name][()])
-            for name in ("key", "category", "split"):
-                column = handle[f"models/{name}"].asstr()[()]
-                parts.setdefault(name, []).append(np.asarray(column, dtype=str)[rows])
+            arrays = {name: handle[score][name][()] for name in SAMPLE_ARRAYS}
+            models = {
+                name: handle[f"models/{name}"].asstr()[()] for name in ("key", "category", "split")
+            }
+        _check_samples(file, score, arrays, len(models["key"]))
+        for name, values in arrays.items():
+            if name != "model":
+                parts.setdefault(name, []).append(values)
+        for name, column in models.items():
+            parts.setdefault(name, []).append(np.asarray(column, dtype=str)[arrays["model"]])
     if not parts:
         raise DatasetError(f"{path}: no {score} samples in {len(files)} samples file(s)")
     return SampleSet(**{k: np.concatenate(v) for k, v in parts.items()}, attrs=attrs)

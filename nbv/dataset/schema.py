@@ -27,7 +27,10 @@ A model is therefore complete or absent whatever moment the process is killed.""
 
 from __future__ import annotations
 
+import io
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -119,11 +122,28 @@ def read_model(group: h5py.Group, viewspaces: tuple[str, ...] | None = None) -> 
     )
 
 
+@contextmanager
+def hdf5_written(path: Path) -> Iterator[h5py.File]:
+    """An HDF5 file to fill in the body, built in memory and written to ``path`` whole once the
+    body ends (:func:`~nbv.utils.atomic.atomic_path`: nothing under ``path`` if it fails).
+
+    In memory first: when the disk fills (or a file-size limit is reached) under HDF5's own
+    writes, the library's later clean-up fails too and can end the process with a crash; a plain
+    write of the finished bytes fails with the system's error, which the commands report in one
+    line. Memory: the file's size.
+    """
+    buffer = io.BytesIO()
+    with h5py.File(buffer, "w") as handle:
+        yield handle
+    with atomic_path(path) as tmp, open(tmp, "wb") as out:
+        out.write(buffer.getbuffer())
+
+
 def write_part(
     path: Path, root_attrs: dict, viewspaces: dict[str, np.ndarray], model: ModelData
 ) -> None:
     """Write a one-model part file atomically (temporary name, fsync, rename)."""
-    with atomic_path(path) as tmp, h5py.File(tmp, "w") as handle:
+    with hdf5_written(path) as handle:
         write_root(handle, root_attrs, viewspaces)
         write_model(handle.create_group(f"models/{model.key}"), model)
 
@@ -153,18 +173,17 @@ def assemble_shard(
             previous version of ``path`` itself.
         failures: (key, reason) of the models that could not be made.
     """
-    with atomic_path(path) as tmp:
-        splits: dict[str, list[str]] = {}
-        with h5py.File(tmp, "w") as out:
-            write_root(out, root_attrs, viewspaces)
-            models = out.create_group("models")
-            for file, key in sources:
-                with h5py.File(file, "r") as src:
-                    src.copy(src[f"models/{key}"], models, name=key)
-                splits.setdefault(str(models[key].attrs["split"]), []).append(key)
-            for split, keys in splits.items():
-                write_strings(out, f"splits/{split}", keys)
-            write_strings(out, "failures", [[key, reason] for key, reason in failures], columns=2)
+    splits: dict[str, list[str]] = {}
+    with hdf5_written(path) as out:
+        write_root(out, root_attrs, viewspaces)
+        models = out.create_group("models")
+        for file, key in sources:
+            with h5py.File(file, "r") as src:
+                src.copy(src[f"models/{key}"], models, name=key)
+            splits.setdefault(str(models[key].attrs["split"]), []).append(key)
+        for split, keys in splits.items():
+            write_strings(out, f"splits/{split}", keys)
+        write_strings(out, "failures", [[key, reason] for key, reason in failures], columns=2)
 
 
 def config_json(settings: dict) -> str:

@@ -29,8 +29,11 @@ def start(cfg) -> Path:
     ValueError it raises (a bad setting, a missing or unusable dataset or scorer file) refuses
     the run, and the run folder goes when the run left nothing of its own there."""
     from nbv.eval.evaluate import run
+    from nbv.utils.lock import one_writer
 
-    return run(ENTRY.build(cfg))
+    settings = ENTRY.build(cfg)
+    with one_writer(settings.out_dir, "evaluation run"):
+        return run(settings)
 
 
 def finish(out: Path) -> None:

@@ -87,9 +87,8 @@ class EpisodeLog:
         self.done: dict[tuple[str, str], list[EpisodeRecord]] = {}
         if self.path.exists() and not self._read(ident):
             os.replace(self.path, self.path.with_name(self.path.name + ".stale"))
-        if not self.path.exists():
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._write_lines([{"identity": ident}])
+        # Written with the first finished model: a run refused before it leaves no log.
+        self._header = None if self.path.exists() else {"identity": ident}
 
     def _read(self, ident: str) -> bool:
         """Load the finished models and cut the file after the last one (dropping the records
@@ -119,6 +118,10 @@ class EpisodeLog:
         return True
 
     def _write_lines(self, entries: list[dict]) -> None:
+        if self._header is not None:
+            entries = [self._header, *entries]
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._header = None
         text = "".join(json.dumps(_plain(e), allow_nan=True) + "\n" for e in entries)
         append_durably(self.path, text)
 

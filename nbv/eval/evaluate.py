@@ -26,6 +26,7 @@ from nbv.eval.disturb import disturbed, noise_check
 from nbv.eval.episode_log import LOG_NAME, EpisodeLog, identity
 from nbv.eval.inputs import (
     DatasetInfo,
+    EvalDataError,
     dataset_context,
     exclude_selection,
     load_networks,
@@ -260,6 +261,9 @@ def evaluate(settings: EvalSettings) -> Evaluation:
         torch.set_num_threads(settings.threads)
     runnable = [m for m in settings.methods if m not in skipped]
     jobs = _jobs(settings, runnable, skip_on)
+    if not jobs or not any(info.keys for info, _ in opened):
+        why = "; ".join(f"{m}: {r}" for m, r in skipped.items()) or "no model to run on"
+        raise EvalDataError(f"methods={list(settings.methods)}: no episode can run ({why})")
     scorer_file = settings.scorer_file() if set(SCORED) & set(runnable) else None
     scorer = load_scorer(scorer_file) if scorer_file else None
     ident = identity(

@@ -199,8 +199,9 @@ def load_networks(
 ) -> tuple[dict[str, NetworkPolicy], dict[str, str]]:
     """The checkpoints of the networks the selected methods run (:func:`networks_of`), as they
     are (no fallback to the shipped weights: :func:`with_shipped_weights`): (network method ->
-    policy, selected method -> skip reason). A method led by another's network is skipped when
-    that network is.
+    policy, selected method -> skip reason). Only a checkpoint that does not exist is skipped
+    (a default path with no shipped weights behind it); a method led by another's network is
+    skipped when that network is. A file that exists and cannot be used refuses the run.
 
     ``n_views``: the viewspace's size a PCNBV network must have; None: any (see
     :func:`unusable`)."""
@@ -213,11 +214,14 @@ def load_networks(
         try:
             policy = METHODS[method].load(path, n_views, settings.precision)
         except CheckpointError as err:
+            if Path(path).exists():  # a file that is there but unusable is never skipped
+                raise EvalDataError(f"checkpoints.{method}: {err}") from None
             failed[method] = str(err)
             continue
         if policy.input != needed:
-            failed[method] = f"checkpoint {path} holds a network on {policy.input}, not {needed}"
-            continue
+            raise EvalDataError(
+                f"checkpoints.{method}: {path} holds a network on {policy.input}, not {needed}"
+            )
         networks[method] = policy
     skipped = {}
     for method in settings.methods:

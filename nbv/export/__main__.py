@@ -36,9 +36,11 @@ def start(cfg) -> tuple:
 
 def finish(started: tuple) -> None:
     from nbv.export.pcnbv_format import export
+    from nbv.utils.lock import one_writer
 
     s, sources, selections, origin = started
-    export(s.out_dir, sources, selections, ascii=s.ascii, origin=origin, progress=s.progress)
+    with one_writer(s.out_dir, "export"):
+        export(s.out_dir, sources, selections, ascii=s.ascii, origin=origin, progress=s.progress)
     log.info("wrote %s", s.out_dir / "manifest.json")
 
 

@@ -15,6 +15,7 @@ import nbv.dataset
 from nbv.export.errors import ExportError
 from nbv.export.pcnbv_format import DATASET_ONLY, Selection, Source
 from nbv.export.views import FullViews
+from nbv.utils.artefacts import ArtefactError, reading
 
 __all__ = ["ExportError", "from_dataset", "from_eval_run"]
 
@@ -93,6 +94,18 @@ def from_eval_run(
     chosen viewspaces and methods, for the first ``limit`` models of each dataset."""
     data = _results(run)
     where = str(Path(run) / "results.json")
+    # An episode or dataset entry without its keys, or with values of the wrong type, is a
+    # results.json that cannot be used: one refusal naming it.
+    try:
+        with reading(where, "results.json of python -m nbv.eval"):
+            return _gather(data, where, viewspaces, methods, limit)
+    except ArtefactError as err:
+        raise ExportError(str(err)) from None
+
+
+def _gather(
+    data: dict, where: str, viewspaces: tuple[str, ...], methods: tuple[str, ...], limit: int | None
+) -> tuple[list[Source], list[Selection]]:
     episodes = [e for e in data["episodes"] if e.get("check") is None]
     run_methods = list(dict.fromkeys(e["method"] for e in episodes))
     run_viewspaces = list(dict.fromkeys(e["viewspace"] for e in episodes))

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from nbv.infogain.view_features import FEATURES
+from nbv.utils.atomic import write_text
 
 #: Format tag of the weight files.
 FORMAT = "nbv-gain-scorer-1"
@@ -77,9 +78,7 @@ def save_scorer(path: str | os.PathLike[str], scorer: GainScorer) -> None:
         ],
         "info": dict(scorer.info),
     }
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(payload, indent=1))
-    os.replace(tmp, path)
+    write_text(path, json.dumps(payload, indent=1))
 
 
 def load_scorer(path: str | os.PathLike[str]) -> GainScorer:
@@ -104,10 +103,13 @@ def load_scorer(path: str | os.PathLike[str]) -> GainScorer:
             f"{list(FEATURES)}; train it again with python -m train.scorer"
         )
     try:
-        return GainScorer(
+        scorer = GainScorer(
             tuple(np.asarray(layer["weight"], dtype=np.float64) for layer in payload["layers"]),
             tuple(np.asarray(layer["bias"], dtype=np.float64) for layer in payload["layers"]),
             payload.get("info", {}),
         )
     except (KeyError, TypeError, ValueError) as err:
         raise ScorerError(f"{path}: unusable layers ({err})") from None
+    if not all(np.isfinite(a).all() for a in (*scorer.weights, *scorer.biases)):
+        raise ScorerError(f"{path}: its layers hold NaN or infinite values")
+    return scorer

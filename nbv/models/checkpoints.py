@@ -91,6 +91,11 @@ def read_payload(
     missing = [k for k in ("config", "state_dict", "extra") if not isinstance(payload.get(k), dict)]
     if missing:
         raise CheckpointError(f"checkpoint {path} lacks the dicts {missing}")
+    bad = [name for name, value in payload["state_dict"].items()
+           if not isinstance(value, Tensor)
+           or (value.is_floating_point() and not bool(torch.isfinite(value).all()))]  # fmt: skip
+    if bad:
+        raise CheckpointError(f"checkpoint {path}: weights {bad[:3]} are not finite tensors")
     return payload
 
 

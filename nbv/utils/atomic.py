@@ -12,6 +12,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from nbv.utils.artefacts import out_of_space, space_error
+
 
 def fsync_replace(tmp: str | os.PathLike[str], final: str | os.PathLike[str]) -> None:
     """Flush the finished file ``tmp`` to disk and rename it to ``final`` atomically."""
@@ -39,8 +41,10 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     try:
         yield tmp
         fsync_replace(tmp, path)
-    except BaseException:
+    except BaseException as err:
         tmp.unlink(missing_ok=True)
+        if out_of_space(err):  # name the file: a library's own error may not
+            raise space_error(err, path) from err
         raise
 
 
@@ -53,8 +57,13 @@ def write_text(path: str | os.PathLike[str], text: str) -> None:
 
 def append_durably(path: str | os.PathLike[str], text: str) -> None:
     """Append ``text`` to ``path`` and flush it to disk before returning (a durable log: a kill
-    can tear at most the last line, which the log's reader drops)."""
-    with open(path, "a") as handle:
-        handle.write(text)
-        handle.flush()
-        os.fsync(handle.fileno())
+    or a full disk can tear at most the last line, which the log's reader drops)."""
+    try:
+        with open(path, "a") as handle:
+            handle.write(text)
+            handle.flush()
+            os.fsync(handle.fileno())
+    except OSError as err:
+        if out_of_space(err):
+            raise space_error(err, path) from err
+        raise
