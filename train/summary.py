@@ -40,7 +40,7 @@ from nbv.config.schema import PathsConfig  # noqa: E402
 from nbv.config.settings import Entry  # noqa: E402
 from nbv.policies.registry import BASELINES, METHODS  # noqa: E402
 from nbv.utils.artefacts import check_array, read_json, reading  # noqa: E402
-from nbv.utils.atomic import write_text  # noqa: E402
+from nbv.utils.atomic import save_figure, write_text  # noqa: E402
 from nbv.utils.markdown import md_table  # noqa: E402
 from nbv.utils.stats import bootstrap_mean  # noqa: E402
 from train.heldout import HELDOUT_FILE, HELDOUT_METHODS  # noqa: E402
@@ -251,7 +251,7 @@ def _plot(results: list[dict], path: Path) -> None:
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 

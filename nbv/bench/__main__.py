@@ -17,6 +17,7 @@ configure_openmp()
 
 from nbv.bench.config import ENTRY, BenchSettings  # noqa: E402
 from nbv.config.cli import command  # noqa: E402
+from nbv.utils.atomic import write_text  # noqa: E402
 
 PROG = "nbv.bench"
 # Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.
@@ -41,7 +42,7 @@ def finish(settings: BenchSettings) -> None:
         )
     if settings.json:
         settings.json.parent.mkdir(parents=True, exist_ok=True)
-        settings.json.write_text(json.dumps(rows, indent=1))
+        write_text(settings.json, json.dumps(rows, indent=1))
         log.info("wrote %s", settings.json)
 
 

@@ -60,6 +60,34 @@ def fail(prog: str, message: object) -> NoReturn:
     sys.exit(REFUSED)
 
 
+def given_keys() -> set[str]:
+    """The keys set on this command's line (hydra's task overrides): ``{"methods",
+    "checkpoints.pcnbv", ...}``; empty outside a hydra task."""
+    if not HydraConfig.initialized():
+        return set()
+    return {o.split("=", 1)[0].lstrip("+~") for o in HydraConfig.get().overrides.task}
+
+
+def check_given_files(files: dict[str, object]) -> None:
+    """Refuse a file named on the command line (a key of :func:`given_keys`) that is not there:
+    what the user named is used or the run is refused, never replaced by a default.
+
+    Args:
+        files: setting key -> the path it holds (None: not set), for the keys that name an
+            input file this run will read.
+
+    Raises:
+        ValueError: naming the first such key and its path.
+    """
+    given = given_keys()
+    for key, path in files.items():
+        if key in given and path is not None and not Path(str(path)).is_file():
+            raise ValueError(
+                f"{key}={path}: no such file (a file named on the command line is used or the "
+                "run is refused; leave the key out for the default)"
+            )
+
+
 def stop_if_out_of_space(prog: str, err: BaseException) -> None:
     """End the program with one line and :data:`NO_SPACE_STATUS` when ``err`` is a write that
     ran out of room (:func:`~nbv.utils.artefacts.out_of_space`); return otherwise.

@@ -44,6 +44,7 @@ from nbv.render.backends import render
 from nbv.render.job import RenderError, RenderJob
 from nbv.render.noise import noisy_depth
 from nbv.render.preflight import check_blender
+from nbv.utils.atomic import write_text
 from nbv.utils.fields import ConfigError
 from nbv.utils.lock import one_writer
 from nbv.utils.seeding import named_rng
@@ -121,7 +122,7 @@ def _check_identity(settings: GeneratorSettings, shard_file: Path, parts_dir: Pa
             "use another out_dir or delete that folder"
         )
     parts_dir.mkdir(parents=True, exist_ok=True)
-    (parts_dir / "config.json").write_text(wanted)
+    write_text(parts_dir / "config.json", wanted)
 
 
 def _root_attrs(settings: GeneratorSettings) -> dict:

@@ -25,6 +25,7 @@ from nbv.config.settings import Entry  # noqa: E402
 from nbv.dataset.reader import Dataset, open_dataset  # noqa: E402
 from nbv.dataset.records import ModelData  # noqa: E402
 from nbv.geometry.camera import Intrinsics, project  # noqa: E402
+from nbv.utils.atomic import save_figure
 
 PROG = "nbv.dataset.show"
 # Named, not __name__ (which is "__main__" under `python -m`), so the job log says who speaks.
@@ -74,7 +75,7 @@ def draw_model(model: ModelData, intrinsics: Intrinsics, viewspace: str, out: Pa
     ax.legend(loc="upper left", fontsize=7)
     fig.suptitle(f"{model.key} ({model.category}, {model.split}), viewspace {viewspace}")
     out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=110, bbox_inches="tight")
+    save_figure(fig, out, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return out
 

@@ -16,7 +16,7 @@ configure_openmp()
 
 from pathlib import Path  # noqa: E402
 
-from nbv.config.cli import command  # noqa: E402
+from nbv.config.cli import check_given_files, command  # noqa: E402
 from nbv.eval.config import ENTRY  # noqa: E402
 
 PROG = "nbv.eval"
@@ -29,9 +29,12 @@ def start(cfg) -> Path:
     ValueError it raises (a bad setting, a missing or unusable dataset or scorer file) refuses
     the run, and the run folder goes when the run left nothing of its own there."""
     from nbv.eval.evaluate import run
+    from nbv.policies.registry import networks_of
     from nbv.utils.lock import one_writer
 
     settings = ENTRY.build(cfg)
+    check_given_files({f"checkpoints.{m}": settings.checkpoints.get(m)
+                       for m in networks_of(settings.methods)})  # fmt: skip
     with one_writer(settings.out_dir, "evaluation run"):
         return run(settings)
 

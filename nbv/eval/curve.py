@@ -39,6 +39,7 @@ from nbv.infogain.gain_scorer import load_scorer
 from nbv.models.checkpoints import CHECKPOINT_FORMAT, load_checkpoint
 from nbv.models.view_conditioned import load_conditioned
 from nbv.policies.registry import BASELINES, METHODS, NETWORK_INPUTS, SCORED, SPREAD
+from nbv.utils.atomic import save_figure, write_text
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean
 
@@ -205,8 +206,8 @@ def _write(out: Path, rows: list[dict], lines: dict[str, float]) -> None:
     )  # fmt: skip
     ref = ", ".join(f"{m} {lines[f'{m}_original']:.3f} / {lines[f'{m}_permuted']:.3f}"
                     for m in BASELINES)  # fmt: skip
-    (out / "curve.md").write_text(
-        "\n".join([*table, "", f"Unseen AUC, original / permuted: {ref}.", ""])
+    write_text(
+        out / "curve.md", "\n".join([*table, "", f"Unseen AUC, original / permuted: {ref}.", ""])
     )
     fig, axes = plt.subplots(1, 2, figsize=(9, 3.6), sharey=True)
     for ax, vs in zip(axes, VIEWSPACES, strict=True):
@@ -219,7 +220,7 @@ def _write(out: Path, rows: list[dict], lines: dict[str, float]) -> None:
     axes[0].set_ylabel("AUC")
     axes[1].legend(loc="lower right")
     fig.tight_layout()
-    fig.savefig(out / "curve.png", dpi=120)
+    save_figure(fig, out / "curve.png", dpi=120)
     plt.close(fig)
 
 

@@ -25,6 +25,7 @@ from nbv.eval.disturb import auc_changes  # noqa: E402
 from nbv.eval.metric_tables import episode_values, summaries  # noqa: E402
 from nbv.eval.tables import groups, method_rank, order_methods  # noqa: E402
 from nbv.policies.registry import GEOMETRIC, METHODS, ORACLE  # noqa: E402
+from nbv.utils.atomic import save_figure
 
 CHECK_LABELS = {
     "random_cloud": "random cloud",
@@ -71,7 +72,7 @@ def curves_figure(evaluation, what: str, path: Path) -> None:
             if j == 0:
                 ax.set_ylabel(f"mean {what.upper() if what == 'vig' else what}")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
 
 
@@ -106,7 +107,7 @@ def disturbance_figure(evaluation, path: Path) -> bool:
         ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13), ncol=2)
         ax.grid(axis="x", alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True
 
@@ -138,7 +139,7 @@ def noise_figure(evaluation, path: Path) -> bool:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True
 
@@ -176,7 +177,7 @@ def metrics_figure(evaluation, path: Path) -> bool:
             ax.grid(axis="x", alpha=0.3)
             ax.set_title(f"{title}\n{d}, {vs}" if i == 0 else f"{d}, {vs}", fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True
 
@@ -261,7 +262,7 @@ def reconstruction_figure(evaluation, path: Path) -> bool:
         fontsize=9,
     )
     fig.subplots_adjust(left=0.0, right=0.97, bottom=0.03, top=0.9, wspace=0.05)
-    fig.savefig(path, dpi=110)
+    save_figure(fig, path, dpi=110)
     plt.close(fig)
     return True
 

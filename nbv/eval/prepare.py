@@ -30,6 +30,7 @@ from nbv.dataset.records import ModelData
 from nbv.eval.config import PrepareSettings
 from nbv.geometry.scores import COVERAGE_TEST
 from nbv.geometry.viewspace import is_named
+from nbv.utils.atomic import write_text
 
 log = logging.getLogger(__name__)
 
@@ -115,7 +116,7 @@ def prepare_meshes(
         reasons = "; ".join(f"{k}: {r}" for k, r in summary.failures) or "no mesh files"
         raise ValueError(f"mesh_dir={str(mesh_dir)!r}: no mesh could be prepared ({reasons})")
     record = {"identity": identity(mesh_dir, settings, source), "failures": summary.failures}
-    done.write_text(json.dumps(record, indent=1))
+    write_text(done, json.dumps(record, indent=1))
     return out, [tuple(f) for f in summary.failures]
 
 
@@ -191,7 +192,7 @@ def rendered_viewspaces(
         raise ValueError(
             f"{dataset_dir}: rendering viewspaces {', '.join(names)} failed ({reasons})"
         )
-    done.write_text(json.dumps({"identity": ident, "failures": []}, indent=1))
+    write_text(done, json.dumps({"identity": ident, "failures": []}, indent=1))
     return out
 
 

@@ -59,6 +59,7 @@ from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD, MethodContext
 from nbv.setcover.settings import HullSettings
+from nbv.utils.atomic import write_text
 from nbv.utils.fields import at_least, or_null
 from nbv.utils.markdown import md_table
 from nbv.utils.ranking import best_view_hit, spearman_per_sample, split_half_reliability
@@ -256,7 +257,7 @@ def write(out: Path, records: list[dict], rows: list[dict], truth: dict | None) 
     """``ranking.json`` (every state) and ``ranking.md`` (the summary tables of
     :func:`summary`'s ``rows`` and :func:`reliability_summary`'s ``truth``)."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "ranking.json").write_text(json.dumps({"states": records}))
+    write_text(out / "ranking.json", json.dumps({"states": records}))
     groups = list(rows[0]["by_group"])
     steps = list(rows[0]["by_captured"])
     lines = md_table(
@@ -290,7 +291,7 @@ def write(out: Path, records: list[dict], rows: list[dict], truth: dict | None) 
                  f"{truth['mean'].text(signed=False)} over {truth['states']} states): a "
                  "scorer's Spearman can hardly exceed its square root")  # fmt: skip
     lines += ["", f"{text}:", "", *md_table(["method", *map(str, steps)], by_step)]
-    (out / "ranking.md").write_text("\n".join([*lines, ""]))
+    write_text(out / "ranking.md", "\n".join([*lines, ""]))
 
 
 def _viewspace_table(rows: list[dict]) -> list[str]:

@@ -23,6 +23,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from nbv.utils.atomic import atomic_path
+
 #: The viewspace files that ship with the project.
 DATA_DIR = Path(__file__).resolve().parents[2] / "data" / "viewspaces"
 #: The seed of the shipped permuted viewspace.
@@ -287,7 +289,8 @@ def load_viewspace(path: str | Path) -> np.ndarray:
 
 def save_viewspace(path: str | Path, viewspace: np.ndarray) -> None:
     """Write a viewspace as text with full float64 precision (``%.18e``)."""
-    np.savetxt(path, np.asarray(viewspace, dtype=np.float64), fmt="%.18e")
+    with atomic_path(path) as tmp:
+        np.savetxt(tmp, np.asarray(viewspace, dtype=np.float64), fmt="%.18e")
 
 
 def fibonacci_directions(n: int, hemisphere: bool = False) -> np.ndarray:

@@ -18,7 +18,7 @@ from nbv.models.threads import configure_openmp
 # Before torch is imported (nbv.models.threads): a robot's computer is rarely idle.
 configure_openmp()
 
-from nbv.config.cli import command  # noqa: E402
+from nbv.config.cli import check_given_files, command  # noqa: E402
 from nbv.plan.config import ENTRY  # noqa: E402
 
 PROG = "nbv.plan"
@@ -32,6 +32,7 @@ def start(cfg) -> tuple:
     from nbv.scan.planner import Planner
 
     settings = ENTRY.build(cfg)
+    check_given_files({"checkpoint": settings.checkpoint})
     if settings.mesh is not None:
         result, depth = plan_mesh(settings)
         result.reconstruction = reconstruct_episode(settings, result, depth)

@@ -67,3 +67,11 @@ def append_durably(path: str | os.PathLike[str], text: str) -> None:
         if out_of_space(err):
             raise space_error(err, path) from err
         raise
+
+
+def save_figure(figure, path: str | os.PathLike[str], **options) -> None:
+    """``figure.savefig`` (a matplotlib figure) to ``path`` whole or not at all; the format is
+    the path's suffix. ``options`` go to ``savefig``."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, format=path.suffix.lstrip(".") or "png", **options)
