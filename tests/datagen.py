@@ -69,9 +69,10 @@ def make_train_dataset(out: Path) -> Path:
     return out
 
 
-def make_tiny_dataset(out: Path, models: int = 2) -> Path:
+def make_tiny_dataset(out: Path, models: int = 2, keep_depth: bool = False) -> Path:
     """The first ``models`` synthetic models of the unseen categories (split test), ray cast
-    with a 64 x 48 camera, 1000 ground-truth points, 50 stored points a view."""
+    with a 64 x 48 camera, 1000 ground-truth points, 50 stored points a view (and the
+    full-resolution depth with ``keep_depth``)."""
     summary = generate(
         GeneratorSettings(
             out_dir=out,
@@ -80,11 +81,12 @@ def make_tiny_dataset(out: Path, models: int = 2) -> Path:
             intrinsics=SMALL_CAMERA,
             n_gt=1000,
             points_per_view=50,
+            keep_depth=keep_depth,
             renderer=Renderer(backend="raycast"),
             progress=False,
         )
     )
-    assert summary.produced == models
+    assert summary.produced == models, summary
     return out
 
 

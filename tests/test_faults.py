@@ -70,7 +70,14 @@ def real(tmp_path_factory) -> dict[str, Path]:
     assert trained.status == 0, trained.stderr
     made["cv"] = root / "cv"
     made["scorer"] = SHIPPED_SCORER
-    made["scorer"] = SHIPPED_SCORER
+    made["viewspace"] = ROOT / "data" / "viewspaces" / "original_33.txt"
+    made["mesh"] = write_meshes(root / "one_mesh", bad=False) / "box.ply"
+    made["full_views"] = make_tiny_dataset(root / "full_views", models=1, keep_depth=True)
+    completion = [*COMPLETION, "epochs=1", f"data_dir={root / 'cdata'}",
+                  f"out_dir={root / 'crun'}"]  # fmt: skip
+    trained = run_command("train.completion", completion, root)
+    assert trained.status == 0, trained.stderr
+    made["completion_data"], made["completion_run"] = root / "cdata", root / "crun"
     made["eval_run"] = run_eval(
         EvalSettings(
             run="run",
@@ -217,6 +224,38 @@ def _train(*extra: str) -> Callable[[Path, dict], list[str]]:
     return args
 
 
+#: The completion network's tiny training (tests/test_completion.py's sizes).
+COMPLETION = ["train_models=1", "valid_models=1", "n_random=1", "shards=1", "points_per_view=32",
+              "n_gt=64", "n_input=32", "n_coarse=16", "samples_per_epoch=8", "batch_size=4",
+              "val_per_model=1", "progress=false"]  # fmt: skip
+
+
+def _completion(epochs: int) -> Callable[[Path, dict], list[str]]:
+    def args(work: Path, real: dict) -> list[str]:
+        data = work / "cdata" if (work / "cdata").exists() else real["completion_data"]
+        out = work / "crun" if (work / "crun").exists() else work / "crun_new"
+        return [*COMPLETION, f"epochs={epochs}", f"data_dir={data}", f"out_dir={out}"]
+
+    return args
+
+
+def _ranking(*extra: str) -> Callable[[Path, dict], list[str]]:
+    def args(work: Path, real: dict) -> list[str]:
+        data = work / "data" if (work / "data").exists() else real["tiny"]
+        return [f"data_dir={data}", f"out={work / 'rank'}", "limit=1",
+                *(e.format(work=work) for e in extra)]  # fmt: skip
+
+    return args
+
+
+def _plan(*extra: str) -> Callable[[Path, dict], list[str]]:
+    def args(work: Path, real: dict) -> list[str]:
+        return [f"mesh={real['mesh']}", "camera=small", f"out_dir={work / 'plan'}",
+                *(e.format(work=work) for e in extra)]  # fmt: skip
+
+    return args
+
+
 def _summary(work: Path, real: dict) -> list[str]:
     return [f"folder={work / 'cv'}"]
 
@@ -247,6 +286,24 @@ COMMANDS = {
                                                   "ig_scorer={work}/scorer.json")),
     "export reads results.json": Command("nbv.export", "eval_run", "run", "run/results.json",
                                          _export),
+    "export reads a shard": Command("nbv.export", "full_views", "data", f"data/{SHARD}",
+                                    lambda w, r: [f"data_dir={w / 'data'}",
+                                                  f"out_dir={w / 'export'}", "progress=false"]),
+    "ranking reads a shard": Command("nbv.eval.ranking", "tiny", "data", f"data/{SHARD}",
+                                     _ranking("methods=[spread]")),
+    "ranking reads a checkpoint": Command("nbv.eval.ranking", "checkpoint", "pcnbv.pt",
+                                          "pcnbv.pt", _ranking("methods=[pcnbv]",
+                                                               "checkpoints.pcnbv={work}/pcnbv.pt")),
+    "plan reads a checkpoint": Command("nbv.plan", "checkpoint", "pcnbv.pt", "pcnbv.pt",
+                                       _plan("method=pcnbv", "checkpoint={work}/pcnbv.pt")),
+    "plan reads a viewspace file": Command("nbv.plan", "viewspace", "views.txt", "views.txt",
+                                           _plan("method=spread", "viewspace.kind=file",
+                                                 "viewspace.file={work}/views.txt")),
+    "completion training reads its data": Command("train.completion", "completion_data", "cdata",
+                                                  "cdata/shard-00000-of-00001.h5",
+                                                  _completion(1)),
+    "completion training resumes last.pt": Command("train.completion", "completion_run", "crun",
+                                                   "crun/last.pt", _completion(2)),
 }  # fmt: skip
 
 #: What each command is given, spoiled.
@@ -264,6 +321,20 @@ CORPUS = {
     "export reads results.json": [*json_faults("episodes"),
                                   json_edit("an episode without views",
                                             lambda d: d["episodes"][0].pop("views"))],
+    "export reads a shard": [f for f in shard_faults() if "coverage" not in f.name],
+    "ranking reads a shard": shard_faults(),
+    "ranking reads a checkpoint": checkpoint_faults(),
+    "plan reads a checkpoint": checkpoint_faults(),
+    # A text file cut at a line's end is a valid shorter file: only cuts mid-line are faults.
+    "plan reads a viewspace file": [*truncations()[:2], garbage(), text("NaN", "nan 0 1\n0 1 0\n"),
+                                    text("two columns", "0 1\n1 0\n"),
+                                    text("a view twice", "0 0 1\n0 0 2\n")],
+    "completion training reads its data": [*truncations(), foreign_hdf5(),
+                                           h5_drop("gt"), h5_reshape("gt"), h5_poison("gt"),
+                                           h5_drop("counts")],
+    "completion training resumes last.pt": [*truncations()[:3], foreign_hdf5(),
+                                            torch_edit("no identity",
+                                                       lambda p: p.pop("identity"))],
 }  # fmt: skip
 
 CASES = [(name, fault) for name, faults in CORPUS.items() for fault in faults]
@@ -314,3 +385,51 @@ def test_a_spoiled_artefact_is_refused_in_one_line(real, tmp_path, name, fault):
     assert line.startswith(f"{command.module}: "), outcome.stderr[-3000:]
     assert target.name in line, line
     assert _kept(tree(tmp_path)) == _kept(before), "the refused run wrote or changed files"
+
+
+# -- A saved planner (the library's Planner.load) ----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def saved_planner(tmp_path_factory) -> Path:
+    """A planner on two table-top views of a cabinet, saved (planner.json and its captures)."""
+    from nbv.assets.synthetic.catalogue import make_model
+    from nbv.geometry.camera import Intrinsics
+    from nbv.render.scene import SceneSettings, table_scene
+    from nbv.scan import Planner
+
+    camera = Intrinsics.centred(160, 120, 119.0)
+    vertices, faces = make_model("cabinet", np.random.default_rng(1))
+    vertices = vertices[:, [0, 2, 1]] * np.array([1.0, -1.0, 1.0])
+    views = table_scene(vertices, faces, camera, SceneSettings(views=2), seed=0)
+    planner = Planner(method="spread", viewspace={"kind": "hemisphere", "n": 12, "up": "z",
+                                                  "radius": 0.45}, n_views=4)  # fmt: skip
+    for depth, pose in zip(views.depth, views.poses, strict=True):
+        planner.add_view(depth, pose, camera, max_range=1.2)
+    return planner.save(tmp_path_factory.mktemp("planner") / "scan")
+
+
+PLANNER_FAULTS = [
+    *truncations()[:3],
+    text("not JSON", "{'settings'"),
+    text("a list", "[]"),
+    json_edit("no settings", lambda d: d.pop("settings")),
+    json_edit("no camera", lambda d: d.pop("camera")),
+    json_edit("a setting out of range", lambda d: d["settings"].__setitem__("n_views", -3)),
+    json_edit("an unknown setting", lambda d: d["settings"].__setitem__("wings", 2)),
+]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("fault", PLANNER_FAULTS, ids=[f.name for f in PLANNER_FAULTS])
+def test_a_spoiled_planner_state_is_refused_naming_it(saved_planner, tmp_path, fault):
+    from nbv.scan import Planner
+    from nbv.scan.capture import CaptureError
+
+    folder = shutil.copytree(saved_planner, tmp_path / "scan")
+    assert Planner.load(folder).captures  # the intact copy loads
+    fault.apply(folder / "planner.json")
+    with pytest.raises(CaptureError) as refused:
+        Planner.load(folder)
+    message = str(refused.value)
+    assert "planner.json" in message and "\n" not in message

@@ -39,6 +39,7 @@ from nbv.geometry.camera import Intrinsics, backproject, valid_depth, viewspace_
 from nbv.geometry.clouds import farthest_points
 from nbv.geometry.raycast import raycast_depth
 from nbv.geometry.viewspace import get_viewspace
+from nbv.utils.artefacts import check_array, reading
 from nbv.utils.seeding import named_rng
 
 #: The dataset camera's field of view (640 x 480, f = 476) at a quarter of its resolution.
@@ -47,6 +48,10 @@ CAMERA = Intrinsics.centred(160, 120, 119.0)
 VIEW_GROUPS = ("original", "permuted", "random")
 #: Version of the shard layout.
 LAYOUT = 1
+
+
+#: What a shard of this data is, in a refusal.
+SHARD = "completion data shard"
 
 
 class CompletionDataError(ValueError):
@@ -168,11 +173,8 @@ def check_shard(path: Path, settings: DataSettings) -> None:
     Raises:
         CompletionDataError: one line naming the file and what differs.
     """
-    try:
-        with h5py.File(path, "r") as f:
-            attrs = dict(f.attrs)
-    except OSError as err:
-        raise CompletionDataError(f"{path}: not a readable HDF5 file ({err})") from err
+    with reading(path, SHARD), h5py.File(path, "r") as f:
+        attrs = dict(f.attrs)
     if attrs.get("layout") != LAYOUT:
         raise CompletionDataError(f"{path}: layout {attrs.get('layout')!r}, expected {LAYOUT}")
     if attrs.get("settings") != _attrs(settings)["settings"]:
@@ -213,17 +215,21 @@ def load(paths: list[Path], settings: DataSettings) -> CompletionData:
     """Every model of the shards ``paths`` (each checked by :func:`check_shard`)."""
     keys, split, category, points, counts, gt = [], [], [], [], [], []
     k = settings.points_per_view
+    views = group_slices(settings)["random"].stop
     for path in paths:
         check_shard(path, settings)
-        with h5py.File(path, "r") as f:
+        with reading(path, SHARD), h5py.File(path, "r") as f:
             for key in f:
                 g = f[key]
                 keys.append(key)
-                split.append(g.attrs["split"])
-                category.append(g.attrs["category"])
-                points.append(g["points"][()].reshape(-1, k, 3))
-                counts.append(g["counts"][()])
-                gt.append(g["gt"][()])
+                split.append(str(g.attrs["split"]))
+                category.append(str(g.attrs["category"]))
+                # A view that saw nothing is all NaN (model_record): shapes only here.
+                cloud = check_array(g["points"][()], path, f"{key}/points", (views * k, 3),
+                                    finite=False)  # fmt: skip
+                points.append(cloud.reshape(views, k, 3))
+                counts.append(check_array(g["counts"][()], path, f"{key}/counts", (views,)))
+                gt.append(check_array(g["gt"][()], path, f"{key}/gt", (settings.n_gt, 3)))
     return CompletionData(keys, np.array(split), np.array(category), np.stack(points),
                           np.stack(counts), np.stack(gt), group_slices(settings))  # fmt: skip
 

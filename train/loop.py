@@ -304,8 +304,7 @@ def _train(settings: TrainSettings) -> dict:
     train, val = split_samples(samples, settings)
     dataset = nbv.dataset.open(settings.dataset)
     selection_keys, heldout_keys = fold_keys(dataset, settings)
-    for key in (*selection_keys, *heldout_keys):  # a bad model refuses the run before it writes
-        dataset.model(key, ("original",))
+    dataset.verify([*selection_keys, *heldout_keys])  # a bad model refuses before any write
     identity = run_identity(
         settings, dataset_identity(settings.dataset), samples_identity(settings)
     )

@@ -32,7 +32,7 @@ from hydra.errors import HydraException
 from omegaconf.errors import OmegaConfBaseException
 
 from nbv.config.schema import describe
-from nbv.utils.artefacts import out_of_space
+from nbv.utils.artefacts import ArtefactError, out_of_space
 from nbv.utils.lock import OutputBusy
 
 log = logging.getLogger(__name__)
@@ -247,7 +247,9 @@ def command(
             return
         try:
             finish(state)
-        except OutputBusy as err:  # the work's own lock, taken as it starts writing
+        except (OutputBusy, ArtefactError) as err:
+            # The work's own lock, taken as it starts writing; a bad input file met mid-work
+            # (what is written so far is whole, and a rerun once it is mended goes on).
             fail(prog, err)
         except (OSError, RuntimeError) as err:
             stop_if_out_of_space(prog, err)

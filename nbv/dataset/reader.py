@@ -163,6 +163,20 @@ class Dataset:
         check_model(model, file, int(self.attrs["n_gt"]), self.viewspaces)
         return model
 
+    def verify(self, keys: list[str] | None = None) -> None:
+        """Read and check the models (all unless named) as :meth:`model` does, leaving out the
+        full-resolution depth: a command calls it before it writes anything, so that a bad
+        model refuses the run instead of stopping it half-way.
+
+        Raises:
+            ArtefactError: the first bad model, naming its file and array.
+        """
+        for key in self.keys() if keys is None else keys:
+            file = self.index[key][0]
+            with reading(file, SHARD), h5py.File(file, "r") as handle:
+                model = read_model(handle[f"models/{key}"], depth=False)
+            check_model(model, file, int(self.attrs["n_gt"]), self.viewspaces)
+
     def keys(self, split: str | None = None, category: str | None = None) -> list[str]:
         """Model keys, optionally only of one split and/or category."""
         return [

@@ -89,8 +89,11 @@ def write_model(group: h5py.Group, model: ModelData) -> None:
             g.create_dataset("depth", data=depth, chunks=(1, *depth.shape[1:]), **_COMPRESSION)
 
 
-def read_model(group: h5py.Group, viewspaces: tuple[str, ...] | None = None) -> ModelData:
-    """Read ``/models/<key>`` back into a :class:`ModelData` (all views unless named)."""
+def read_model(
+    group: h5py.Group, viewspaces: tuple[str, ...] | None = None, depth: bool = True
+) -> ModelData:
+    """Read ``/models/<key>`` back into a :class:`ModelData` (all views unless named; the
+    full-resolution depth images too, when stored, unless ``depth`` is False)."""
     attrs = group.attrs
     views = {}
     for name, g in group["views"].items():
@@ -104,7 +107,7 @@ def read_model(group: h5py.Group, viewspaces: tuple[str, ...] | None = None) -> 
             hull_points=g["hull_points"][()],
             hull_offsets=g["hull_offsets"][()],
             points_per_view=int(g["points"].attrs.get("points_per_view", 0)),
-            depth=g["depth"][()] if "depth" in g else None,
+            depth=g["depth"][()] if depth and "depth" in g else None,
         )
     return ModelData(
         key=group.name.rsplit("/", 1)[-1],

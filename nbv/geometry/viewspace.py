@@ -256,6 +256,8 @@ def load_viewspace(path: str | Path) -> np.ndarray:
         text = path.read_text()
     except OSError as err:
         raise ViewspaceError(f"{path}: cannot read viewspace file ({err.strerror})") from err
+    except UnicodeDecodeError as err:
+        raise ViewspaceError(f"{path}: not a text file of 'x y z' lines ({err.reason})") from err
     rows: list[np.ndarray] = []
     lines: list[int] = []
     for number, line in enumerate(text.splitlines(), start=1):
