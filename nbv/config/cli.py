@@ -12,6 +12,12 @@ Two moments refuse a run:
 Either way the last line on stderr is ``<prog>: <what is wrong>`` and the status is 2.
 ``HYDRA_FULL_ERROR=1`` in the environment keeps hydra's own report of composition errors.
 
+Once the work runs, three faults still end in one line: an output another live process holds
+(:class:`~nbv.utils.lock.OutputBusy`) and a bad input file met mid-work
+(:class:`~nbv.utils.artefacts.ArtefactError`), status 2; a write that ran out of space (a full
+disk, a quota, a file-size limit), status :data:`NO_SPACE_STATUS`, after which the same command
+goes on where it stopped.
+
 :func:`command` builds every entry point this way, so that a ``__main__`` module holds only its
 own work: ``main = command(PROG, "eval", start, finish)`` and ``if __name__ == "__main__": main()``.
 """
