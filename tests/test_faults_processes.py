@@ -381,3 +381,40 @@ def test_the_three_cases_of_issue_54_end_in_one_line(tmp_path, train_data, eval_
     assert "pcnbv.pt" in one_line(done, "nbv.eval")
     assert not (tmp_path / "e").exists()
     # 3. two dataset processes on one out_dir: test_two_dataset_processes_on_one_shard_...
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A 300 KB tmpfs (a disk that fills), remountable larger; skipped where mounting is not
+    allowed (it needs root)."""
+    folder = tmp_path / "disk"
+    folder.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(folder)],
+                             capture_output=True, text=True)  # fmt: skip
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {mounted.stderr.strip()}")
+    yield folder
+    subprocess.run(["umount", str(folder)], check=True)
+
+
+@pytest.mark.slow
+def test_a_dataset_on_a_full_disk_stops_in_one_line_and_continues_identically(tmp_path, small_disk):
+    """A real ENOSPC: the tmpfs holds two models' parts, not the third; made larger, the same
+    command finishes with the arrays of a run that had room all along."""
+    from nbv.config.cli import NO_SPACE_STATUS
+
+    clean = tmp_path / "clean"
+    assert run(command("nbv.dataset", f"out_dir={clean}", *DATASET), tmp_path).returncode == 0
+    args = command("nbv.dataset", f"out_dir={small_disk / 'data'}", *DATASET)
+    stopped = run(args, tmp_path)
+    assert stopped.returncode == NO_SPACE_STATUS, stopped.stderr
+    line = one_line(stopped, "nbv.dataset")
+    assert "No space left on device" in line and str(small_disk) in line
+    assert not list(small_disk.rglob("*.tmp"))
+    subprocess.run(["mount", "-o", "remount,size=4m", str(small_disk)], check=True)
+    again = run(args, tmp_path)
+    assert again.returncode == 0, again.stderr
+    a, b = _arrays(small_disk / "data" / SHARD), _arrays(clean / SHARD)
+    assert sorted(a) == sorted(b)
+    for name in a:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
