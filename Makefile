@@ -23,13 +23,16 @@ real-data: $(STAMP)
 dataset: $(STAMP)
 	$(PY) -m nbv.dataset $(ARGS)
 
+# Two processes (pytest-xdist; tests/conftest.py keeps the SLURM tests in one of them).
+WORKERS ?= 2
+
 test: real-data
-	$(PY) -m pytest -q $(ARGS)
+	$(PY) -m pytest -q -n $(WORKERS) --dist loadgroup $(ARGS)
 
 # The fast tier, for every change: the tests not marked slow, blender or slurm
 # (docs/development.md). `make test` runs them all.
 test-fast: $(STAMP)
-	$(PY) -m pytest -q -m "not slow and not blender and not slurm" $(ARGS)
+	$(PY) -m pytest -q -n $(WORKERS) --dist loadgroup -m "not slow and not blender and not slurm" $(ARGS)
 
 # Settings as key=value (conf/bench.yaml), e.g. make bench ARGS="network=false render=false".
 bench: $(STAMP)

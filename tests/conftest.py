@@ -1,4 +1,8 @@
-"""Shared fixtures. ``slurm_cluster``: a real single-node SLURM, started once per test session."""
+"""Shared fixtures. ``slurm_cluster``: a real single-node SLURM, started once per test session.
+
+``make test`` runs the tests in two processes (pytest-xdist, ``--dist loadgroup``): every test
+that needs the SLURM cluster goes to one of them, so that one cluster runs at a time.
+"""
 
 import os
 import shutil
@@ -96,3 +100,10 @@ def slurm_cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SlurmClu
             yield cluster
         finally:
             subprocess.run(["bash", str(SLURM_SCRIPTS / "stop.sh"), str(folder)], timeout=120)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The SLURM tests share one cluster: one xdist group, so one worker runs them all."""
+    for item in items:
+        if item.get_closest_marker("slurm"):
+            item.add_marker(pytest.mark.xdist_group("slurm"))

@@ -87,8 +87,9 @@ def one_writer(output: str | os.PathLike[str], what: str) -> Iterator[Path]:
     since = time.strftime("%Y-%m-%d %H:%M:%S")
     record = {"pid": os.getpid(), "host": socket.gethostname(), "since": since,
               "command": " ".join(sys.argv)}  # fmt: skip
-    os.ftruncate(fd, 0)
-    os.write(fd, json.dumps(record).encode())
+    with contextlib.suppress(OSError):  # the name is for the refusal's words: a full disk
+        os.ftruncate(fd, 0)  # must not keep the lock from being taken
+        os.write(fd, json.dumps(record).encode())
     try:
         yield path
     finally:
