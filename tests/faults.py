@@ -18,6 +18,7 @@ import os
 import runpy
 import shutil
 import sys
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -211,7 +212,14 @@ def run_command(module: str, args: list[str], cwd: Path) -> Outcome:
     sys.argv = [module, *args]
     os.chdir(cwd)
     try:
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        with (
+            contextlib.redirect_stdout(out),
+            contextlib.redirect_stderr(err),
+            warnings.catch_warnings(),
+        ):
+            # Running a module that an earlier case imported: runpy warns that it is in
+            # sys.modules already, which is what running it again in one process means.
+            warnings.simplefilter("ignore", RuntimeWarning)
             try:
                 runpy.run_module(module, run_name="__main__", alter_sys=True)
             except SystemExit as end:

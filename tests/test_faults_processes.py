@@ -197,6 +197,14 @@ def _arrays(path: Path) -> dict[str, np.ndarray]:
     return arrays
 
 
+def _same_arrays(a_path: Path, b_path: Path) -> None:
+    """The two HDF5 files hold the same datasets with the same arrays."""
+    a, b = _arrays(a_path), _arrays(b_path)
+    assert sorted(a) == sorted(b)
+    for name in a:
+        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+
+
 SIGNALS = [signal.SIGTERM, signal.SIGKILL]
 
 
@@ -215,10 +223,7 @@ def test_dataset_killed_at_a_seeded_point_then_rerun_is_identical(sig, tmp_path)
     assert not (killed / SHARD).exists()
     again = run(args, tmp_path)
     assert again.returncode == 0, again.stderr
-    a, b = _arrays(killed / SHARD), _arrays(clean / SHARD)
-    assert sorted(a) == sorted(b)
-    for name in a:
-        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    _same_arrays(killed / SHARD, clean / SHARD)
 
 
 def _metrics(run_dir: Path) -> list[dict]:
@@ -350,10 +355,7 @@ def test_a_dataset_stopped_by_a_full_disk_continues_identically(tmp_path):
     assert len(list((full / ".parts-shard-00000-of-00001").glob("*.h5"))) == 3  # kept
     again = run(args, tmp_path)
     assert again.returncode == 0, again.stderr
-    a, b = _arrays(full / SHARD), _arrays(clean / SHARD)
-    assert sorted(a) == sorted(b)
-    for name in a:
-        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    _same_arrays(full / SHARD, clean / SHARD)
 
 
 # -- Issue 54's three cases, as a user ran them --------------------------------------------------
@@ -414,7 +416,4 @@ def test_a_dataset_on_a_full_disk_stops_in_one_line_and_continues_identically(tm
     subprocess.run(["mount", "-o", "remount,size=4m", str(small_disk)], check=True)
     again = run(args, tmp_path)
     assert again.returncode == 0, again.stderr
-    a, b = _arrays(small_disk / "data" / SHARD), _arrays(clean / SHARD)
-    assert sorted(a) == sorted(b)
-    for name in a:
-        np.testing.assert_array_equal(a[name], b[name], err_msg=name)
+    _same_arrays(small_disk / "data" / SHARD, clean / SHARD)
