@@ -15,4 +15,6 @@ library's own settings (the planners', the occupancy map's) declare theirs the s
 entry point's settings live beside it (``nbv/dataset/config.py``, ``train/config.py``,
 ``nbv/eval/config.py``, ...); ``conf/*.yaml`` only override a default or interpolate a shared
 group; ``docs/configuration.md`` lists every key (``python scripts/config_reference.py``).
+
+Third-party imports: hydra, omegaconf.
 """

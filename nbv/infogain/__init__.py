@@ -8,4 +8,6 @@ by what an occupancy map says it would reveal.
 * :mod:`~nbv.infogain.gain`: a candidate view's gain, summed over its rays.
 * :mod:`~nbv.infogain.view_features`, :mod:`~nbv.infogain.gain_scorer`: what a candidate would
   see as a few numbers, and ``ig_learned``'s small perceptron over them.
+
+Third-party imports: numba, numpy, scipy.
 """

@@ -1,4 +1,5 @@
-"""The networks that pick the next best view, and their checkpoints (the only layer with torch).
+"""The networks that pick the next best view, and their checkpoints (torch's home; the
+policies, the evaluator and the benchmark call torch too).
 
 Modules, each importing only the ones above it:
 
@@ -21,4 +22,15 @@ Modules, each importing only the ones above it:
 
 Nothing is re-exported here: import from the module itself, so that importing the package
 costs nothing and code that avoids torch can still name it.
+
+The other modules:
+
+* :mod:`~nbv.models.completion`: A point-cloud completion network: the captured cloud in, points on
+  the whole surface out.
+* :mod:`~nbv.models.completion_inference`: The completion network's checkpoints, and completing a
+  captured cloud with one.
+* :mod:`~nbv.models.view_conditioned`: A viewspace-conditioned next-best-view network (beyond the
+  paper), and its checkpoints.
+
+Third-party imports: numpy, scipy, torch.
 """

@@ -6,4 +6,13 @@
   subprocess; nothing here imports ``bpy``).
 * :mod:`~nbv.render.preflight`: a Blender binary checked once on a tiny scene before a batch.
 * :mod:`~nbv.render.backends`: :func:`~nbv.render.backends.render`, a stream of jobs on either.
+
+The other modules:
+
+* :mod:`~nbv.render.noise`: A depth-sensor noise model applied to rendered depth images
+  (``renderer.noise``).
+* :mod:`~nbv.render.scene`: A table-top scene as a depth camera on a robot sees it, rendered with
+  the project's ray caster.
+
+Third-party imports: numpy, trimesh.
 """

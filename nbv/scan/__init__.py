@@ -17,6 +17,8 @@ object's frame, the candidates and the policy warm between decisions. Below it:
 
 ``python -m nbv.plan`` (:mod:`nbv.plan`) is the command on top: it reads a folder or simulates a
 mesh's episode, and writes the plan's files, picture and page.
+
+Third-party imports: numpy, open3d, OpenEXR, PIL.
 """
 
 __all__ = ["NextView", "Planner", "ScanSettings"]

@@ -9,4 +9,6 @@ partial cloud.
 * :mod:`~nbv.setcover.view_sets`: the view simulation (analytic or ray cast).
 * :mod:`~nbv.setcover.greedy`: greedy maximum coverage on packed bit sets.
 * :mod:`~nbv.setcover.oneshot`: the whole one-shot plan (the paper's Algorithms 2 and 3).
+
+Third-party imports: numpy, scipy.
 """
