@@ -38,7 +38,7 @@ from nbv.eval.metric_tables import (
 )
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
-from nbv.eval.tables import groups
+from nbv.eval.statistics import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
 from nbv.geometry.reconstruction import cloud_scores
 from nbv.geometry.scores import coverage_from_bits

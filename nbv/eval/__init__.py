@@ -35,7 +35,9 @@ The other modules:
   evaluation's models.
 * :mod:`~nbv.eval.results_files`: The numbers of an evaluation as files: ``results.json`` and
   ``summary.csv``.
-* :mod:`~nbv.eval.tables`: Means over episodes and the Markdown tables of the report.
+* :mod:`~nbv.eval.statistics`: the evaluator's statistics: means over episodes and paired
+  differences, free of Markdown.
+* :mod:`~nbv.eval.tables`: the Markdown tables of the report, from those statistics.
 
 Third-party imports: matplotlib, numpy, omegaconf, scipy, threadpoolctl, torch, tqdm.
 """

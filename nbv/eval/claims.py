@@ -8,7 +8,7 @@ against spread, the geometry-free rule that could explain the same numbers."""
 
 from __future__ import annotations
 
-from nbv.eval.tables import episode_means, paired_from_means
+from nbv.eval.statistics import episode_means, paired_from_means
 from nbv.eval.timing import timing_table
 from nbv.policies.registry import (
     COMPLETION_HULL_SCO,

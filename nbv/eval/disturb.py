@@ -22,7 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from nbv.eval.tables import episode_means, paired_from_means
+from nbv.eval.statistics import episode_means, paired_from_means
 from nbv.geometry.views import CapturedViews
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull_sco import HullSCOPolicy

@@ -2,7 +2,7 @@
 decision of each stage, and spread's ties.
 
 Means per (dataset, viewspace, method) over episodes, a stochastic method's repeats averaged
-first (as :func:`nbv.eval.tables.episode_means` does for AUC); paired differences against spread
+first (as :func:`nbv.eval.statistics.episode_means` does for AUC); paired differences against spread
 and random over the episodes both ran, with bootstrap intervals that resample models
 (:func:`nbv.utils.stats.bootstrap_mean`, as AUC's).
 
@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from nbv.eval.metrics import REACH_FRACTIONS
-from nbv.eval.tables import fmt, method_rank, repeat_mean
+from nbv.eval.statistics import method_rank, repeat_mean
+from nbv.eval.tables import fmt
 from nbv.policies.registry import RANDOM, SPREAD
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean

@@ -23,7 +23,7 @@ import numpy as np  # noqa: E402
 
 from nbv.eval.disturb import auc_changes  # noqa: E402
 from nbv.eval.metric_tables import episode_values, summaries  # noqa: E402
-from nbv.eval.tables import groups, method_rank, order_methods  # noqa: E402
+from nbv.eval.statistics import groups, method_rank, order_methods  # noqa: E402
 from nbv.policies.registry import GEOMETRIC, METHODS, ORACLE  # noqa: E402
 from nbv.utils.atomic import save_figure
 

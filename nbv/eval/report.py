@@ -21,17 +21,14 @@ from nbv.eval.metric_tables import (
     tie_lines,
 )
 from nbv.eval.results_files import write_csv, write_json
-from nbv.eval.tables import (
-    category_tables,
-    curve_tables,
+from nbv.eval.statistics import (
     episode_means,
-    fmt,
     groups,
     method_rank,
-    method_table,
     order_methods,
     paired_from_means,
 )
+from nbv.eval.tables import category_tables, curve_tables, fmt, method_table
 from nbv.eval.timing import COLUMNS, PAPER_TIMES, paper_ratios, timing_table
 from nbv.policies.registry import (
     HULL_SCO,
@@ -57,7 +54,7 @@ def verdict_of(diff: Interval, better: str, other: str) -> str:
 
 
 def _minus_base(means, base: str, others, datasets, viewspaces, seed: int, what: str):
-    """The method table of ``what`` (an :class:`~nbv.eval.tables.EpisodeMean` value) of each of
+    """The method table of ``what`` (an :class:`~nbv.eval.statistics.EpisodeMean` value) of each of
     ``others`` minus ``base``'s, paired over the same episodes: mean [95 % interval] cells."""
 
     def cell(m: str, d: str, vs: str) -> str:

@@ -26,7 +26,7 @@ from nbv.eval.metric_tables import (
     summaries,
 )
 from nbv.eval.metrics import REACH_FRACTIONS
-from nbv.eval.tables import (
+from nbv.eval.statistics import (
     groups,
     method_rank,
 )

@@ -1,0 +1,160 @@
+"""The evaluator's statistics: means over episodes and paired differences, free of Markdown.
+
+By method, by view, by category, and paired differences between two methods. An *episode* is a
+(model, start view) pair; a stochastic method's repeats of one episode are averaged first, so
+every method counts each episode once. Intervals are 95 % bootstrap intervals that resample
+models (the start views of one model are not independent), seeded. The report's order of the
+methods (the registry's) is here too: the tables, the plots and the results files all use it.
+:mod:`nbv.eval.tables` writes Markdown from these results."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+from dataclasses import dataclass
+
+import numpy as np
+
+from nbv.policies.episode import auc
+from nbv.policies.registry import METHODS
+from nbv.utils.stats import Interval, bootstrap_mean
+
+
+def repeat_mean(values: list) -> float:
+    """The mean of one episode's repeats: the value itself for one repeat (most methods; as
+    ``np.mean`` gives it, without its cost, which the report pays some 10^5 times)."""
+    return float(values[0]) if len(values) == 1 else float(np.mean(values))
+
+
+def episode_means(records: list) -> dict[tuple, dict[tuple[str, int], EpisodeMean]]:
+    """Records by (dataset, viewspace, method, check), then by episode (model key, start view),
+    a stochastic method's repeats averaged into one :class:`EpisodeMean` per episode."""
+    by: dict[tuple, dict[tuple[str, int], list]] = defaultdict(lambda: defaultdict(list))
+    for r in records:
+        by[(r.dataset, r.viewspace, r.method, r.check)][(r.key, r.start)].append(r)
+    out: dict[tuple, dict[tuple[str, int], EpisodeMean]] = {}
+    for group, episodes in by.items():
+        out[group] = {}
+        for episode, rs in episodes.items():
+            coverage = np.array([r.coverage for r in rs], dtype=float)
+            vig = np.array([r.vig for r in rs], dtype=float)
+            out[group][episode] = EpisodeMean(
+                auc=repeat_mean([r.auc for r in rs]),
+                coverage=coverage[0] if len(rs) == 1 else coverage.mean(axis=0),
+                vig=vig[0] if len(rs) == 1 else vig.mean(axis=0),
+                total=repeat_mean([r.timings["total"] for r in rs]),
+                online=repeat_mean([r.timings["online"] for r in rs]),
+                zero_gain=repeat_mean([r.counts.get("zero_gain", 0) for r in rs]),
+                planned=repeat_mean([r.counts.get("planned", 0) for r in rs]),
+                repeats=len(rs),
+            )
+    return out
+
+
+@dataclass(frozen=True)
+class EpisodeMean:
+    """One episode's numbers, averaged over a stochastic method's repeats (see
+    :class:`nbv.eval.protocol.EpisodeRecord` for the fields)."""
+
+    auc: float
+    coverage: np.ndarray
+    vig: np.ndarray
+    total: float
+    online: float
+    zero_gain: float
+    planned: float
+    repeats: int
+
+    @property
+    def vig_auc(self) -> float:
+        """The AUC of the VIG curve (coverage's formula, :func:`nbv.policies.episode.auc`);
+        NaN where VIG is undefined after some view."""
+        return auc(self.vig)
+
+
+def groups(records: list, check: bool = False, seed: int = 0) -> dict[tuple, dict]:
+    """Means over episodes, by (dataset, viewspace, method, check).
+
+    Args:
+        records: episode records.
+        check: keep the disturbance checks too (otherwise only the methods as they are).
+        seed: the bootstrap's seed.
+
+    Returns:
+        key -> ``n`` (episodes), ``repeats`` (seeds per episode), ``auc`` (mean), ``auc_se``,
+        ``auc_ci`` (:class:`nbv.utils.stats.Interval`, models resampled), ``coverage`` and
+        ``vig`` (mean curves; VIG averages the models where it is defined, NaN if none),
+        ``total`` and ``online`` (mean seconds per reconstruction), ``zero_gain`` and
+        ``planned`` (mean picks per episode).
+    """
+    out = {}
+    for key, episodes in episode_means(records).items():
+        if key[3] is not None and not check:
+            continue
+        eps = list(episodes.values())
+        aucs = np.array([e.auc for e in eps])
+        vig = np.array([e.vig for e in eps], dtype=float)
+        defined = np.isfinite(vig).all(axis=1)
+        out[key] = dict(
+            n=len(eps),
+            repeats=max(e.repeats for e in eps),
+            auc=float(aucs.mean()),
+            auc_se=float(aucs.std(ddof=1) / np.sqrt(len(eps))) if len(eps) > 1 else float("nan"),
+            auc_ci=bootstrap_mean(aucs, [k for k, _ in episodes], seed),
+            coverage=np.mean([e.coverage for e in eps], axis=0),
+            vig=vig[defined].mean(axis=0) if defined.any() else np.full(vig.shape[1], np.nan),
+            total=float(np.mean([e.total for e in eps])),
+            online=float(np.mean([e.online for e in eps])),
+            zero_gain=float(np.mean([e.zero_gain for e in eps])),
+            planned=float(np.mean([e.planned for e in eps])),
+        )
+    return out
+
+
+def method_rank(method: str) -> int:
+    """Position of a method in report order (the registry's; unknown names last)."""
+    order = list(METHODS)
+    return order.index(method) if method in order else len(order)
+
+
+def order_methods(methods) -> list[str]:
+    """Distinct method names in report order."""
+    return sorted(set(methods), key=method_rank)
+
+
+@dataclass(frozen=True)
+class PairedDifference:
+    """B - A over the episodes both ran: the interval, and each side's mean there."""
+
+    interval: Interval
+    mean_a: float
+    mean_b: float
+
+
+def paired_from_means(
+    means: dict, a: tuple, b: tuple, seed: int = 0, what: str = "auc"
+) -> PairedDifference | None:
+    """AUC(b) - AUC(a) (of coverage, or of the VIG curve) over the episodes both ran, with a
+    bootstrap interval (models resampled).
+
+    Args:
+        means: :func:`episode_means` of the records (computed once for many pairs: it is the
+            costly part).
+        a, b: the (dataset, viewspace, method, check or None) keys of each side.
+        seed: the bootstrap's seed.
+        what: the :class:`EpisodeMean` value compared: ``auc`` (coverage's) or ``vig_auc``
+            (the VIG curve's); episodes where either side's is NaN are left out.
+
+    Returns:
+        None when no episode is shared.
+    """
+    ea, eb = means.get(a, {}), means.get(b, {})
+    pairs = [(getattr(ea[e], what), getattr(eb[e], what), e) for e in sorted(set(ea) & set(eb))]
+    pairs = [p for p in pairs if np.isfinite(p[0]) and np.isfinite(p[1])]
+    if not pairs:
+        return None
+    xa = np.array([p[0] for p in pairs])
+    xb = np.array([p[1] for p in pairs])
+    shared = [p[2] for p in pairs]
+    return PairedDifference(
+        bootstrap_mean(xb - xa, [k for k, _ in shared], seed), float(xa.mean()), float(xb.mean())
+    )
