@@ -150,7 +150,11 @@ def summarise(folder: Path, out: Path) -> list[dict]:
     Raises:
         ValueError: no run under ``folder`` has a ``heldout.json``.
     """
-    runs = [read_run(p) for p in _runs_of(folder)]
+    return summarise_runs([read_run(p) for p in _runs_of(folder)], out)
+
+
+def summarise_runs(runs: list[dict], out: Path) -> list[dict]:
+    """:func:`summarise` of runs already read (:func:`read_run`)."""
     groups: dict[tuple[str, str], list[dict]] = defaultdict(list)
     for r in runs:
         groups[(r["model"], r["score"])].append(r)
@@ -267,17 +271,16 @@ def _runs_of(folder: Path) -> list[Path]:
     return runs
 
 
-def _start(cfg) -> SummarySettings:
-    """The settings, and runs to summarise: nothing is written yet."""
+def _start(cfg) -> tuple[SummarySettings, list[dict]]:
+    """The settings, and every run read and checked: nothing is written yet."""
     settings = ENTRY.build(cfg)
-    for run in _runs_of(settings.folder):  # every run's files checked before anything is written
-        read_run(run)
-    return settings
+    return settings, [read_run(run) for run in _runs_of(settings.folder)]
 
 
-def _finish(settings: SummarySettings) -> None:
+def _finish(started: tuple[SummarySettings, list[dict]]) -> None:
+    settings, runs = started
     out = settings.out
-    summarise(settings.folder, out)
+    summarise_runs(runs, out)
     log.info("wrote %s and %s:\n%s", out / "cv_table.md", out / "cv_coverage_by_view.png",
              (out / "cv_table.md").read_text())  # fmt: skip
 

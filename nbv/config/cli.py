@@ -241,14 +241,11 @@ def command(
     """
     scratch = tuple(scratch)
 
-    def task(cfg: Any) -> None:
+    def work(cfg: Any) -> None:
         try:
             state = start(cfg)
         except ValueError as err:
             refuse(prog, err, scratch)
-        except (OSError, RuntimeError) as err:
-            stop_if_out_of_space(prog, err)
-            raise
         if finish is None:
             return
         try:
@@ -257,6 +254,10 @@ def command(
             # The work's own lock, taken as it starts writing; a bad input file met mid-work
             # (what is written so far is whole, and a rerun once it is mended goes on).
             fail(prog, err)
+
+    def task(cfg: Any) -> None:
+        try:
+            work(cfg)
         except (OSError, RuntimeError) as err:
             stop_if_out_of_space(prog, err)
             raise

@@ -11,7 +11,7 @@ import numpy as np
 from nbv.dataset.records import ModelData
 from nbv.dataset.schema import ROOT_ATTRS, SCHEMA_VERSION, read_model
 from nbv.geometry.camera import Intrinsics
-from nbv.utils.artefacts import ArtefactError, check_array, reading
+from nbv.utils.artefacts import ArtefactError, check_array, check_shape, reading
 
 SHARD_GLOB = "shard-*-of-*.h5"
 #: What a shard is, in a refusal.
@@ -25,30 +25,28 @@ class DatasetError(ArtefactError):
         ValueError.__init__(self, message)
 
 
-def check_model(model: ModelData, file: Path, n_gt: int, viewspaces: dict[str, np.ndarray]) -> None:
-    """Refuse a model whose arrays do not fit the shard's contract (``docs/dataset.md``): the
-    ground truth ``(n_gt, 3)``, each viewspace's poses ``(V, 4, 4)``, offsets ``(V + 1,)`` that
-    rise to the number of points, coverage ``(V, ceil(n_gt / 8))``, all finite.
+def check_model(model: ModelData, file: Path) -> None:
+    """Refuse a model whose values break the shard's contract (``docs/dataset.md``): NaN or
+    infinite ground truth, poses or points, offsets that do not rise from 0 to the number of
+    points. Its arrays' shapes were checked when the shard was opened (:func:`_check_layout`).
 
     Raises:
         ArtefactError: naming ``file``, the model and the array.
     """
     where = f"models/{model.key}"
-    check_array(model.gt_points, file, f"{where}/gt_points", (n_gt, 3))
+    check_array(model.gt_points, file, f"{where}/gt_points")
     for name, view in model.views.items():
-        n = len(viewspaces[name]) if name in viewspaces else None
         at = f"{where}/views/{name}"
-        check_array(view.poses, file, f"{at}/poses", (n, 4, 4))
-        check_array(view.points, file, f"{at}/points", (None, 3))
-        check_array(view.coverage, file, f"{at}/coverage", (n, (n_gt + 7) // 8))
+        check_array(view.poses, file, f"{at}/poses")
+        check_array(view.points, file, f"{at}/points")
         for offsets, points in ((view.offsets, view.points), (view.hull_offsets, view.hull_points)):
-            check_array(offsets, file, f"{at}/offsets", (len(view.poses) + 1,))
             if offsets[0] != 0 or np.any(np.diff(offsets) < 0) or offsets[-1] != len(points):
                 raise ArtefactError(file, f"{at}: offsets do not index its {len(points)} points",
                                     "0, rising, up to the number of points")  # fmt: skip
 
 
-#: A view group's arrays and their shapes; V = the viewspace's views, N = any (docs/dataset.md).
+#: A view group's arrays and their shapes; V = the views (the viewspace's, else the poses'),
+#: N = any (docs/dataset.md).
 VIEW_ARRAYS = {
     "poses": ("V", 4, 4),
     "points": ("N", 3),
@@ -69,21 +67,17 @@ def _check_layout(group: h5py.Group, file: Path, n_gt: int, viewspaces: dict) ->
             raise ArtefactError(file, f"{where}/{name} is missing", "the arrays of docs/dataset.md")
         return group[name].shape
 
-    def want(name: str, shape: tuple) -> None:
-        found = shape_of(name)
-        if len(found) != len(shape) or any(
-            n is not None and n != f for n, f in zip(shape, found, strict=False)
-        ):
-            raise ArtefactError(file, f"{where}/{name} has shape {found}", f"shape {shape}")
-
-    want("gt_points", (n_gt, 3))
+    check_shape(shape_of("gt_points"), file, f"{where}/gt_points", (n_gt, 3))
     if "views" not in group:
         raise ArtefactError(file, f"{where}/views is missing", "one group per viewspace")
     for name in group["views"]:
-        n = len(viewspaces[name]) if name in viewspaces else None
+        poses = shape_of(f"views/{name}/poses")
+        n = len(viewspaces[name]) if name in viewspaces else (poses[0] if poses else None)
         sizes = {"V": n, "V+1": None if n is None else n + 1, "N": None, "bits": (n_gt + 7) // 8}
         for array, shape in VIEW_ARRAYS.items():
-            want(f"views/{name}/{array}", tuple(sizes.get(d, d) for d in shape))
+            array_at = f"views/{name}/{array}"
+            check_shape(shape_of(array_at), file, f"{where}/{array_at}",
+                        tuple(sizes.get(d, d) for d in shape))  # fmt: skip
 
 
 class Dataset:
@@ -157,10 +151,14 @@ class Dataset:
         """Read one model (all viewspaces unless named)."""
         if key not in self.index:
             raise KeyError(f"model {key!r} is not in this dataset ({len(self)} models)")
+        return self._read(key, viewspaces, depth=True)
+
+    def _read(self, key: str, viewspaces: tuple[str, ...] | None, depth: bool) -> ModelData:
+        """One model read and its values checked (:func:`check_model`)."""
         file = self.index[key][0]
         with reading(file, SHARD), h5py.File(file, "r") as handle:
-            model = read_model(handle[f"models/{key}"], viewspaces)
-        check_model(model, file, int(self.attrs["n_gt"]), self.viewspaces)
+            model = read_model(handle[f"models/{key}"], viewspaces, depth=depth)
+        check_model(model, file)
         return model
 
     def verify(self, keys: list[str] | None = None) -> None:
@@ -172,10 +170,7 @@ class Dataset:
             ArtefactError: the first bad model, naming its file and array.
         """
         for key in self.keys() if keys is None else keys:
-            file = self.index[key][0]
-            with reading(file, SHARD), h5py.File(file, "r") as handle:
-                model = read_model(handle[f"models/{key}"], depth=False)
-            check_model(model, file, int(self.attrs["n_gt"]), self.viewspaces)
+            self._read(key, None, depth=False)
 
     def keys(self, split: str | None = None, category: str | None = None) -> list[str]:
         """Model keys, optionally only of one split and/or category."""

@@ -19,7 +19,6 @@ log = logging.getLogger("nbv.export")
 
 def start(cfg) -> tuple:
     """The settings and the source, checked: nothing is written yet."""
-    from nbv.export.errors import ExportError
     from nbv.export.pcnbv_format import check_complete, check_destination
     from nbv.export.sources import from_dataset, from_eval_run
 
@@ -33,10 +32,7 @@ def start(cfg) -> tuple:
         origin = {"data_dir": str(s.data_dir)}
     check_complete(sources, selections)
     for source in sources:  # a bad model refuses the export before anything is written
-        try:
-            source.dataset.verify(source.keys)
-        except ValueError as err:
-            raise ExportError(str(err)) from None
+        source.dataset.verify(source.keys)
     return s, sources, selections, origin
 
 

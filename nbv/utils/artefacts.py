@@ -136,16 +136,25 @@ def check_array(
     Returns:
         ``array`` itself.
     """
-    if shape is not None and (
-        array.ndim != len(shape)
-        or any(n is not None and n != s for n, s in zip(shape, array.shape, strict=True))
-    ):
-        want = "(" + ", ".join("any" if n is None else str(n) for n in shape) + ")"
-        raise ArtefactError(path, f"{name} has shape {array.shape}", f"shape {want}")
+    if shape is not None:
+        check_shape(array.shape, path, name, shape)
     if finite and np.issubdtype(array.dtype, np.floating) and not np.isfinite(array).all():
         bad = int(np.size(array) - np.isfinite(array).sum())
         raise ArtefactError(path, f"{name} holds {bad} NaN or infinite values")
     return array
+
+
+def check_shape(
+    found: tuple[int, ...], path: str | os.PathLike[str], name: str, shape: Sequence[int | None]
+) -> None:
+    """Refuse ``found``, the shape of ``name`` in ``path`` (an array's, or a stored dataset's
+    read from the file's metadata), unless it is ``shape`` (None in an axis: any length)."""
+    fits = len(found) == len(shape) and all(
+        n is None or n == s for n, s in zip(shape, found, strict=True)
+    )
+    if not fits:
+        want = "(" + ", ".join("any" if n is None else str(n) for n in shape) + ")"
+        raise ArtefactError(path, f"{name} has shape {found}", f"shape {want}")
 
 
 def out_of_space(err: BaseException) -> bool:
