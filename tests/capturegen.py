@@ -1,5 +1,5 @@
 """A dataset model and its stored views written as capture folders, for the tests of the
-planner on captures (``nbv.plan``, :class:`nbv.plan.Planner`)."""
+planner on captures (``nbv.plan``, :class:`nbv.scan.Planner`)."""
 
 from __future__ import annotations
 
@@ -19,10 +19,12 @@ from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.config import PlanSettings
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import run_episode
-from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
+from nbv.policies.method import MethodContext
+from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.scan.method import policy_rng
 from nbv.scan.planner import Planner
 from nbv.scan.result import PlanResult
+from nbv.scan.shipped import with_shipped
 from nbv.setcover.settings import HullSettings
 
 CAMERA = Intrinsics.centred(64, 48, 48.0)
@@ -51,7 +53,9 @@ def episode_views(model, method: str) -> list[int]:
     networks = {}
     if NETWORK_INPUTS.get(method) == "directions":
         networks[method] = ConditionedPolicy.from_checkpoint(shipped_weights(method))
-    ctx = MethodContext(networks, HullSettings(), CAMERA, EPS, 10, VolumetricSettings())
+    ctx = with_shipped(
+        MethodContext(networks, HullSettings(), CAMERA, EPS, 10, VolumetricSettings())
+    )
     policy = METHODS[method].build(ctx, policy_rng(0, method))
     return run_episode(model, "original", START, policy, 10).views
 

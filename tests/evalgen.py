@@ -5,7 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from nbv.eval.config import DisturbSettings, EvalSettings
-from nbv.policies.registry import CHECKS, NETWORK_INPUTS
+from nbv.policies.method import CHECKS
+from nbv.policies.registry import NETWORK_INPUTS
 from nbv.setcover.settings import HullSettings
 
 #: The start views of the tiny evaluations.

@@ -260,7 +260,8 @@ def test_a_real_training_run_with_map_features(dataset, tmp_path):
     from nbv.eval.config import EvalSettings
     from nbv.eval.curve import _learner
     from nbv.eval.inputs import load_networks
-    from nbv.policies.registry import METHODS, MethodContext
+    from nbv.policies.method import MethodContext
+    from nbv.policies.registry import METHODS
 
     settings = ConditionedSettings(
         dataset, tmp_path / "run", epochs=1, trajectories=1, steps=3, train_points=64,

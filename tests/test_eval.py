@@ -19,6 +19,7 @@ from evalgen import STARTS, tiny_settings
 from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
+from nbv.assets.weights import SHIPPED_SCORER
 from nbv.eval.config import (
     ENTRY,
     DisturbSettings,
@@ -47,15 +48,9 @@ from nbv.infogain.gain_scorer import GainScorer, ScorerError, save_scorer
 from nbv.infogain.settings import VolumetricSettings
 from nbv.infogain.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode
+from nbv.policies.method import CHECKS, MethodContext
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import (
-    CHECKS,
-    DEFAULT_METHODS,
-    GEOMETRIC,
-    SHIPPED_SCORER,
-    MethodContext,
-    check_methods,
-)
+from nbv.policies.registry import DEFAULT_METHODS, GEOMETRIC, check_methods
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.setcover.settings import HullSettings

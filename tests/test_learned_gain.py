@@ -15,6 +15,7 @@ from datagen import SMALL_CAMERA, VOLUMETRIC, make_tiny_dataset, make_train_data
 from shapes import INTO_POCKET, cup, pocket_scene
 
 import nbv.dataset
+from nbv.assets.weights import SHIPPED_SCORER
 from nbv.bench.volumetric import decision, numpy_ray_features, plain_decision
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.infogain.gain import frontier, view_gains
@@ -25,7 +26,6 @@ from nbv.infogain.view_features import FEATURES, RAY_FEATURES, ray_features, vie
 from nbv.policies.baselines import SpreadPolicy
 from nbv.policies.episode import EpisodeState, run_episode
 from nbv.policies.learned_gain import LearnedGainPolicy
-from nbv.policies.registry import SHIPPED_SCORER
 from nbv.policies.volumetric import InformationGainPolicy
 from nbv.render.raycast import render_raycast
 from train.scorer import ScorerSettings, _scorer, captured, mixed_views, run

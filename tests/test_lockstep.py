@@ -23,8 +23,9 @@ from nbv.geometry.camera import Intrinsics
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import run_episode
 from nbv.policies.lockstep import Batchable, EpisodeSpec, run_lockstep
+from nbv.policies.method import CHECKS, MethodContext
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import CHECKS, METHODS, NETWORK_INPUTS, MethodContext
+from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.setcover.settings import HullSettings
 

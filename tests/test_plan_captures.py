@@ -19,12 +19,14 @@ from nbv.infogain.gain import view_gains
 from nbv.infogain.settings import VolumetricSettings
 from nbv.plan.config import PlanSettings
 from nbv.policies.episode import EpisodeState
-from nbv.policies.registry import METHODS, MethodContext
+from nbv.policies.method import MethodContext
+from nbv.policies.registry import METHODS
 from nbv.scan.capture import CaptureError, check_rigid
 from nbv.scan.captures import read_captures, write_captures
 from nbv.scan.method import policy_rng
 from nbv.scan.object_estimate import EstimateSettings, estimate_object
 from nbv.scan.settings import ObjectSettings, ViewspaceSettings
+from nbv.scan.shipped import with_shipped
 from nbv.setcover.settings import HullSettings
 
 
@@ -65,7 +67,7 @@ def test_next_view_from_captures_is_the_episode_of_the_dataset(model, tmp_path, 
     assert result.visited == views[:captured]
     assert result.chosen == [views[captured]]
     # The planner's predicted gain is that of its decision: the best unvisited view's on its map.
-    ctx = MethodContext({}, HullSettings(), CAMERA, EPS, 10, VolumetricSettings())
+    ctx = with_shipped(MethodContext({}, HullSettings(), CAMERA, EPS, 10, VolumetricSettings()))
     policy = METHODS["ig"].build(ctx, policy_rng(0, "ig"))
     state = EpisodeState(model.captured("original"), np.isin(np.arange(33), views[:captured]),
                          list(views[:captured]))  # fmt: skip

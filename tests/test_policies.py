@@ -13,6 +13,7 @@ from datagen import SMALL_CAMERA, VOLUMETRIC, make_tiny_dataset
 from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
+from nbv.assets.weights import SHIPPED_SCORER
 from nbv.geometry.viewspace import get_viewspace
 from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
@@ -26,11 +27,13 @@ from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, reads_ground
 from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
+from nbv.policies.method import MethodContext
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import METHODS, SHIPPED_SCORER, MethodContext, completion_of
+from nbv.policies.registry import METHODS
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.view_matching import MatchedNetworkPolicy
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.scan.shipped import ShippedCompletion
 from nbv.setcover.hull_sampling import convex_hull
 from nbv.setcover.oneshot import plan as sco_plan
 from nbv.setcover.oneshot import sph_hull_points
@@ -134,7 +137,7 @@ def all_policies(networks, seed: int = 0) -> dict:
 @functools.cache
 def _completer():
     """The shipped completion network, loaded once for the module's tests."""
-    return completion_of(MethodContext({}, HullSettings(), SMALL_CAMERA, 0.02, 10))
+    return ShippedCompletion().completer()
 
 
 @pytest.mark.parametrize("viewspace", ["original", "permuted"])

@@ -19,7 +19,8 @@ import nbv.dataset
 from nbv.eval.config import EvalSettings
 from nbv.eval.ranking import RANKED, oracle_states, ranking, reliability_summary, summary
 from nbv.policies.baselines import OraclePolicy
-from nbv.policies.registry import METHODS, NETWORK_INPUTS, MethodContext
+from nbv.policies.method import MethodContext
+from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.utils.ranking import spearman, spearman_per_sample, split_half_reliability
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from datagen import SMALL_CAMERA
 
+from nbv.assets.weights import SHIPPED_SCORER
 from nbv.infogain.gain_scorer import GainScorer, load_scorer
 from nbv.infogain.view_features import FEATURES
 from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
@@ -15,24 +16,22 @@ from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
+from nbv.policies.method import CHECKS, Method, MethodContext
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import (
     BASELINES,
-    CHECKS,
     DEFAULT_METHODS,
     GEOMETRIC,
     METHODS,
     NETWORK_INPUTS,
     SCORED,
-    SHIPPED_SCORER,
-    Method,
-    MethodContext,
     check_methods,
     method,
     networks_of,
 )
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.scan.shipped import resolve_weights, with_shipped
 from nbv.setcover.settings import HullSettings
 
 
@@ -46,7 +45,7 @@ def _context(hull: HullSettings | None = None) -> MethodContext:
         else NetworkPolicy(model=pcnbv_model, input=kind)
         for name, kind in NETWORK_INPUTS.items()
     }
-    return MethodContext(networks, hull or HullSettings(), SMALL_CAMERA, 0.02, 7)
+    return with_shipped(MethodContext(networks, hull or HullSettings(), SMALL_CAMERA, 0.02, 7))
 
 
 def test_every_method_builds_a_fresh_policy_of_its_kind():
@@ -95,9 +94,12 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
     # only the signature one plans on the signature.
     assert kinds["ig"] is InformationGainPolicy and kinds["hull_ig"] is HullThenGainPolicy
     assert kinds["ig_learned"] is LearnedGainPolicy
-    # Without a scorer in the context, ig_learned runs the shipped one; with one, that one.
+    # The commands give the shipped scorer (with_shipped); a context with none is refused.
     shipped = METHODS["ig_learned"].build(ctx, np.random.default_rng(0)).scorer
     assert shipped.info == load_scorer(SHIPPED_SCORER).info
+    bare_scorer = dataclasses.replace(ctx, scorer=None)
+    with pytest.raises(ValueError, match="no learned score given"):
+        METHODS["ig_learned"].build(bare_scorer, np.random.default_rng(0))
     own = GainScorer((np.ones((len(FEATURES), 1)),), (np.zeros(1),))
     given = dataclasses.replace(ctx, scorer=own)
     assert METHODS["ig_learned"].build(given, np.random.default_rng(0)).scorer is own
@@ -191,9 +193,15 @@ def test_derived_lists_follow_the_entries():
     assert check_methods("random_hull") == ("hull_sco",)
     for m in METHODS.values():
         assert set(m.checks) <= set(CHECKS)
-        assert len(m.style) == 2
+
+
+def test_every_method_is_drawn_in_its_own_colour():
+    from nbv.eval.plots import STYLES
+
+    assert set(STYLES) == set(METHODS)  # no style for a method that is gone
+    assert all(len(style) == 2 for style in STYLES.values())
     # Every method has its own colour, so that the plots tell them apart.
-    assert len({m.style[0] for m in METHODS.values()}) == len(METHODS)
+    assert len({colour for colour, _ in STYLES.values()}) == len(METHODS)
 
 
 def test_unknown_names_are_refused_with_the_registered_ones():
@@ -213,18 +221,16 @@ def test_unknown_names_are_refused_with_the_registered_ones():
 
 def test_a_network_method_runs_its_checkpoint_else_the_shipped_weights(tmp_path, caplog):
     from nbv.assets.weights import shipped_weights
-    from nbv.policies.registry import METHODS
 
-    pcnbv = METHODS["pcnbv"]
     mine = tmp_path / "best.pt"
     mine.write_bytes(b"")
-    assert pcnbv.weights(mine) == mine
-    with caplog.at_level("INFO", logger="nbv.policies.registry"):
-        assert pcnbv.weights(tmp_path / "missing.pt") == shipped_weights("pcnbv")
+    assert resolve_weights("pcnbv", mine) == mine
+    with caplog.at_level("INFO", logger="nbv.scan.shipped"):
+        assert resolve_weights("pcnbv", tmp_path / "missing.pt") == shipped_weights("pcnbv")
     assert "using the shipped weights" in caplog.text and "missing.pt" in caplog.text
-    assert pcnbv.weights(None) == shipped_weights("pcnbv")
+    assert resolve_weights("pcnbv", None) == shipped_weights("pcnbv")
     with pytest.raises(ValueError, match="runs no network"):
-        METHODS["ig"].weights(None)
+        resolve_weights("ig", None)
 
 
 def test_the_vig_networks_fall_back_to_their_own_shipped_file(tmp_path, monkeypatch):
@@ -234,11 +240,11 @@ def test_the_vig_networks_fall_back_to_their_own_shipped_file(tmp_path, monkeypa
     monkeypatch.setattr(nbv.assets.weights, "FOLDER", tmp_path)
     for name in ("pcnbv_vig", "pcnbv_sph_vig"):
         with pytest.raises(ValueError, match=f"method={name} needs trained weights"):
-            METHODS[name].weights(tmp_path / "missing.pt")
+            resolve_weights(name, tmp_path / "missing.pt")
         (tmp_path / f"{name}.pt").write_bytes(b"")
-        assert METHODS[name].weights(tmp_path / "missing.pt") == tmp_path / f"{name}.pt"
+        assert resolve_weights(name, tmp_path / "missing.pt") == tmp_path / f"{name}.pt"
     with pytest.raises(ValueError, match="runs no network"):
-        METHODS["vig_hull_sco"].weights(None)  # it runs pcnbv_sph_vig's: that method's weights
+        resolve_weights("vig_hull_sco", None)  # it runs pcnbv_sph_vig's: that method's weights
 
 
 def test_load_gives_the_policy_of_the_method_input():
@@ -246,7 +252,7 @@ def test_load_gives_the_policy_of_the_method_input():
 
     for name in ("pcnbv", "pcnbv_sph", "vcnbv", "vcnbv_map"):
         m = METHODS[name]
-        assert m.load(m.weights(None), 33).input == m.network_input
+        assert m.load(resolve_weights(name, None), 33).input == m.network_input
 
 
 def test_every_policy_has_the_attributes_the_policy_protocol_declares():
@@ -265,7 +271,7 @@ def test_every_policy_has_the_attributes_the_policy_protocol_declares():
 def test_completion_methods_use_the_contexts_completion_or_the_shipped_network():
     from nbv.models.completion_inference import Completer
     from nbv.policies.completion import CompletionGainPolicy, CompletionHullPolicy
-    from nbv.policies.registry import completion_of
+    from nbv.policies.method import completion_of
 
     def truth(cloud):
         return cloud
@@ -279,7 +285,9 @@ def test_completion_methods_use_the_contexts_completion_or_the_shipped_network()
     hull = METHODS["completion_hull_sco"].build(ctx, np.random.default_rng(0))
     assert isinstance(hull, CompletionHullPolicy) and hull.complete is truth
     assert hull.n_views == 7 and hull.intrinsics == SMALL_CAMERA
-    shipped = _context(None)
-    first = completion_of(shipped)
-    assert isinstance(first, Completer) and completion_of(shipped) is first  # loaded once
+    shipped = completion_of(_context(None))
+    first = shipped.completer()
+    assert isinstance(first, Completer) and shipped.completer() is first  # loaded once
     assert first.fill > 0  # the shipped network's validation CD-L1
+    with pytest.raises(ValueError, match="no completion network given"):
+        completion_of(dataclasses.replace(ctx, completion=None))

@@ -18,8 +18,9 @@ from tqdm import tqdm
 
 from nbv.models.checkpoints import load_checkpoint
 from nbv.policies.episode import EPISODE_VIEWS, run_episode
+from nbv.policies.method import MethodContext
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import BASELINES, METHODS, MethodContext
+from nbv.policies.registry import BASELINES, METHODS
 from nbv.setcover.settings import HullSettings
 from nbv.utils.atomic import write_text
 from nbv.utils.seeding import named_rng

@@ -19,14 +19,14 @@ from nbv.bench.timing import best_time, torch_threads
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.policies.episode import EPISODE_VIEWS, captured_state
+from nbv.policies.method import MethodContext
 from nbv.policies.registry import (
     COMPLETION_GAIN,
     COMPLETION_GAIN_AUTHORS,
     COMPLETION_HULL_SCO,
     METHODS,
-    MethodContext,
-    completion_of,
 )
+from nbv.scan.shipped import ShippedCompletion
 from nbv.setcover.settings import HullSettings
 from nbv.utils.seeding import named_rng
 
@@ -44,8 +44,10 @@ def decision_rows(
     """One decision of each completion planner after the views :data:`CAPTURED`, one thread."""
     parts = [stored[v] if v in CAPTURED else np.zeros((0, 3)) for v in range(len(poses))]
     state = captured_state(poses, parts, list(CAPTURED))
-    ctx = MethodContext({}, HullSettings(), intrinsics, DEFAULT_EPS, EPISODE_VIEWS)
-    completion_of(ctx)  # loaded once, as an evaluation loads it
+    completion = ShippedCompletion()
+    completion.completer()  # loaded once, as an evaluation loads it
+    ctx = MethodContext({}, HullSettings(), intrinsics, DEFAULT_EPS, EPISODE_VIEWS,
+                        completion=completion)  # fmt: skip
 
     def decide(name: str):
         return METHODS[name].build(ctx, named_rng(0, "plan", name))(state)
@@ -74,8 +76,7 @@ def training_row(threads: int | None = None, precision: str = "auto", seed: int 
     from nbv.models.precision import autocast, flush_denormals, resolve_precision
 
     resolved = resolve_precision(precision)
-    config = completion_of(MethodContext({}, HullSettings(), Intrinsics(), DEFAULT_EPS,
-                                         EPISODE_VIEWS)).model.config  # fmt: skip
+    config = ShippedCompletion().completer().model.config
     gen = torch.Generator().manual_seed(seed)
     x = torch.rand(TRAIN_BATCH, config.n_input, 3, generator=gen) - 0.5
     gt = torch.rand(TRAIN_BATCH, 2048, 3, generator=gen) - 0.5

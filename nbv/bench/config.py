@@ -12,6 +12,7 @@ from typing import Any
 from nbv.config.schema import ConfigError, PathsConfig
 from nbv.config.settings import Entry
 from nbv.policies.registry import PCNBV
+from nbv.scan.shipped import resolve_weights
 
 
 @dataclass(frozen=True)
@@ -53,7 +54,7 @@ class BenchEntry(Entry):
         settings = super().build(cfg)
         if settings.checkpoint is None:
             fold0 = cfg["paths"]["checkpoints"].get(PCNBV.name)
-            settings = dataclasses.replace(settings, checkpoint=PCNBV.weights(fold0))
+            settings = dataclasses.replace(settings, checkpoint=resolve_weights(PCNBV.name, fold0))
         return settings
 
 

@@ -18,7 +18,9 @@ from nbv.bench.volumetric import plain_decision
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.episode import EPISODE_VIEWS, captured_state
-from nbv.policies.registry import HULL_SCO, IG, METHODS, MethodContext
+from nbv.policies.method import MethodContext
+from nbv.policies.registry import HULL_SCO, IG, METHODS
+from nbv.scan.shipped import with_shipped
 from nbv.setcover.settings import HullSettings
 from nbv.utils.seeding import named_rng
 
@@ -44,7 +46,9 @@ def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrin
     builds (:func:`nbv.policies.episode.captured_state`)."""
     parts = [points if v == view else np.zeros((0, 3)) for v in range(len(poses))]
     state = captured_state(poses, parts, [view])
-    ctx = MethodContext({}, hull, intrinsics, DEFAULT_EPS, EPISODE_VIEWS, VolumetricSettings())
+    ctx = with_shipped(
+        MethodContext({}, hull, intrinsics, DEFAULT_EPS, EPISODE_VIEWS, VolumetricSettings())
+    )
     # The generator of nbv.scan.method.policy_rng.
     return METHODS[method].build(ctx, named_rng(0, "plan", method))(state)
 

@@ -43,6 +43,7 @@ from nbv.geometry.viewspace import original_viewspace
 from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.registry import PCNBV, PCNBV_SPH
 from nbv.render.raycast import render_raycast
+from nbv.scan.shipped import resolve_weights
 from nbv.setcover.greedy import greedy_max_coverage
 from nbv.setcover.hull_sampling import DEFAULT_N_SAMP, convex_hull, sample_hull
 from nbv.setcover.oneshot import Plan
@@ -274,8 +275,8 @@ def run(
         from nbv.bench.network import network_rows
         from nbv.bench.training import training_rows
 
-        pcnbv = checkpoint if checkpoint is not None else PCNBV.weights(None)
-        networks = [("PCNBV", pcnbv), ("PCNBV-sph", PCNBV_SPH.weights(None))]
+        pcnbv = checkpoint if checkpoint is not None else resolve_weights(PCNBV.name, None)
+        networks = [("PCNBV", pcnbv), ("PCNBV-sph", resolve_weights(PCNBV_SPH.name, None))]
         targets = {"PCNBV": 0.13, "PCNBV-sph": 0.04}
         rows += network_rows(stored, [(name, w, targets[name]) for name, w in networks])
         rows += training_rows(networks, len(stored))

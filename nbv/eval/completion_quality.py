@@ -270,7 +270,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from nbv.assets.weights import FOLDER
     from nbv.dataset.reader import open_dataset
     from nbv.models.completion_inference import Completer
-    from nbv.policies.registry import COMPLETION_WEIGHTS
+    from nbv.scan.shipped import COMPLETION_WEIGHTS
     from nbv.utils.atomic import write_text
 
     defaults = {"dataset": "data/generated/synthetic", "viewspace": "original", "out": "",

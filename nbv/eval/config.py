@@ -40,7 +40,8 @@ from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VI
 from nbv.geometry.viewspace import ViewspaceError, get_viewspace
 from nbv.infogain.settings import VolumetricSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
-from nbv.policies.registry import CHECKS, DEFAULT_METHODS, METHODS, NETWORK_INPUTS, networks_of
+from nbv.policies.method import CHECKS
+from nbv.policies.registry import DEFAULT_METHODS, METHODS, NETWORK_INPUTS, networks_of
 from nbv.setcover.settings import HullSettings
 from nbv.utils.fields import at_least, or_null, positive
 

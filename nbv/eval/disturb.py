@@ -27,8 +27,8 @@ from nbv.geometry.views import CapturedViews
 from nbv.policies.episode import EpisodeState
 from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.policies.lockstep import Batchable, NetworkRequest, Request
+from nbv.policies.method import CHECKS
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import CHECKS
 from nbv.policies.volumetric import InformationGainPolicy
 
 

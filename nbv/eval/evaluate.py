@@ -40,13 +40,8 @@ from nbv.eval.protocol import EpisodeRecord, episode_record, episode_rng
 from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.episode import Episode, run_episode
 from nbv.policies.lockstep import EpisodeSpec, run_lockstep
-from nbv.policies.registry import (
-    METHODS,
-    SCORED,
-    MethodContext,
-    check_methods,
-    networks_of,
-)
+from nbv.policies.method import MethodContext
+from nbv.policies.registry import METHODS, SCORED, check_methods, networks_of
 
 log = logging.getLogger(__name__)
 

@@ -19,13 +19,10 @@ from nbv.assets.real_objects import default_root
 from nbv.dataset.reader import Dataset
 from nbv.eval.config import PREPARED, EvalSettings
 from nbv.eval.prepare import prepare_meshes, rendered_viewspaces, stored_name
+from nbv.policies.method import MethodContext
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.registry import (
-    METHODS,
-    NETWORK_INPUTS,
-    MethodContext,
-    networks_of,
-)
+from nbv.policies.registry import METHODS, NETWORK_INPUTS, networks_of
+from nbv.scan.shipped import ShippedCompletion, resolve_weights
 
 log = logging.getLogger(__name__)
 
@@ -166,9 +163,11 @@ def dataset_context(
     settings: EvalSettings, ds: Dataset, networks: dict[str, NetworkPolicy], scorer=None
 ) -> MethodContext:
     """What the methods of ``settings`` need on the dataset ``ds``: its camera and eps, the
-    loaded networks, the run's planner settings and ``ig_learned``'s scorer (None without it)."""
+    loaded networks, the run's planner settings, ``ig_learned``'s scorer (None without it) and
+    the shipped completion network (loaded when a completion planner first runs)."""
     return MethodContext(networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]),
-                         settings.n_views, settings.ig, scorer=scorer)  # fmt: skip
+                         settings.n_views, settings.ig, scorer=scorer,
+                         completion=ShippedCompletion())  # fmt: skip
 
 
 def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, NetworkPolicy]) -> None:
@@ -235,7 +234,7 @@ def load_networks(
 def with_shipped_weights(settings: EvalSettings) -> EvalSettings:
     """The settings with the checkpoint of each network the selected methods run as the
     registry resolves it
-    (:meth:`~nbv.policies.registry.Method.weights`: the checkpoint when it exists, else the
+    (:func:`nbv.scan.shipped.resolve_weights`: the checkpoint when it exists, else the
     weights the package ships, logged). A missing checkpoint the package ships nothing for stays:
     :func:`load_networks` skips its method, naming the path."""
     found = {}
@@ -244,7 +243,7 @@ def with_shipped_weights(settings: EvalSettings) -> EvalSettings:
         if method not in needed:
             continue
         try:
-            weights = METHODS[method].weights(path)
+            weights = resolve_weights(method, path)
         except ValueError:  # no checkpoint and nothing shipped: skipped when loaded
             continue
         if weights != Path(path):

@@ -34,9 +34,45 @@ CHECK_LABELS = {
 }
 
 
+#: How each registered method is drawn, the same in every figure: matplotlib colour and line
+#: style (a method missing here is drawn in :data:`UNSTYLED`).
+STYLES: dict[str, tuple[str, str]] = {
+    "random": ("#7f7f7f", ":"),
+    "spread": ("#bcbd22", ":"),
+    "oracle": ("#000000", "--"),
+    "oracle_vig": ("#525252", "--"),
+    "pcnbv": ("#1f77b4", "-"),
+    "pcnbv_sph": ("#17becf", "-"),
+    "pcnbv_vig": ("#aec7e8", "-."),
+    "pcnbv_sph_vig": ("#9edae5", "-."),
+    "pcnbv_matched": ("#08519c", ":"),
+    "pcnbv_sph_matched": ("#0f7c86", ":"),
+    "vcnbv": ("#393b79", "-"),
+    "vcnbv_map": ("#6b6ecf", "--"),
+    "hull_sco": ("#d62728", "-"),
+    "hull_sco_sph": ("#ff7f0e", "-"),
+    "hull_sco_probes": ("#9467bd", "-."),
+    "hull_sco_replan": ("#2ca02c", "-."),
+    "vig_hull_sco": ("#ff9896", "--"),
+    "vig_hull_sco_matched": ("#ad494a", "--"),
+    "vig_hull_sco_sph": ("#ffbb78", "--"),
+    "ig": ("#e377c2", "-"),
+    "hull_ig": ("#8c564b", "-"),
+    "ig_learned": ("#c51b7d", "--"),
+    "ig_area_factor": ("#e7969c", "-."),
+    "ig_proximity": ("#7b4173", ":"),
+    "completion_hull_sco": ("#7f2704", "-"),
+    "completion_hull_sco_replan": ("#a63603", "-."),
+    "completion_gain": ("#006d2c", "-"),
+    "completion_gain_authors": ("#74c476", "--"),
+}
+#: The colour and line style of a method :data:`STYLES` does not name.
+UNSTYLED = ("#8c564b", "-")
+
+
 def _style(method: str) -> tuple[str, str]:
-    """The method's colour and line style (the registry's; the same in every figure)."""
-    return METHODS[method].style if method in METHODS else ("#8c564b", "-")
+    """The method's colour and line style (:data:`STYLES`; the same in every figure)."""
+    return STYLES.get(method, UNSTYLED)
 
 
 def curves_figure(evaluation, what: str, path: Path) -> None:

@@ -57,7 +57,9 @@ from nbv.geometry.scores import DEFAULT_EPS
 from nbv.infogain.gain_scorer import load_scorer
 from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
-from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD, MethodContext
+from nbv.policies.method import MethodContext
+from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD
+from nbv.scan.shipped import with_shipped
 from nbv.setcover.settings import HullSettings
 from nbv.utils.atomic import write_text
 from nbv.utils.fields import at_least, or_null
@@ -77,7 +79,7 @@ def _ranked() -> tuple[str, ...]:
     network (a two-stage planner) has none; any other method's policy is built once, with
     default settings, to see.
     """
-    ctx = MethodContext({}, HullSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS)
+    ctx = with_shipped(MethodContext({}, HullSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS))
     return tuple(
         m.name
         for m in METHODS.values()

@@ -5,7 +5,10 @@
 * :mod:`~nbv.policies.network`: a trained PCNBV / PCNBV-sph checkpoint.
 * :mod:`~nbv.policies.hull_sco`: the convex-hull planner, one-shot or replanned.
 * :mod:`~nbv.policies.inputs`: the cloud and signature a policy computes, with their times.
-* :mod:`~nbv.policies.registry`: the one list of methods: name, needs, checks, style, builder.
+* :mod:`~nbv.policies.registry`: the one table of methods: name, needs, checks, builder.
+* :mod:`~nbv.policies.method`: what a method is (:class:`~nbv.policies.method.Method`) and what
+  building its policy may use (:class:`~nbv.policies.method.MethodContext`).
+* :mod:`~nbv.policies.builders`: how each method builds its policy for one episode.
 
 Every policy but the oracle reads only what the captured views saw and the camera poses. Each
 records the seconds of every decision in ``timings`` (stage -> list of seconds) and what it had to

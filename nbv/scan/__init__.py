@@ -14,6 +14,8 @@ object's frame, the candidates and the policy warm between decisions. Below it:
 * :mod:`~nbv.scan.method`, :mod:`~nbv.scan.decision`: the registry's policy built for a scan,
   and the decision on the views so far (:class:`~nbv.scan.result.PlanResult`);
 * :mod:`~nbv.scan.reconstruction`: the depth views fused into a mesh.
+* :mod:`~nbv.scan.shipped`: the weights the package ships, given to the methods: a network
+  method's checkpoint or shipped weights, the shipped completion network and learned score.
 
 ``python -m nbv.plan`` (:mod:`nbv.plan`) is the command on top: it reads a folder or simulates a
 mesh's episode, and writes the plan's files, picture and page.

@@ -16,8 +16,10 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics
 from nbv.policies.episode import EpisodeState, Policy
-from nbv.policies.registry import METHODS, MethodContext, networks_of
+from nbv.policies.method import MethodContext
+from nbv.policies.registry import METHODS, networks_of
 from nbv.scan.settings import ScanSettings
+from nbv.scan.shipped import resolve_weights, with_shipped
 from nbv.utils.seeding import named_rng
 
 if TYPE_CHECKING:
@@ -45,13 +47,15 @@ def scan_context(settings: ScanSettings, camera: Intrinsics, n_views: int) -> Me
     networks = {
         name: load_network(settings, views, name) for name in networks_of([settings.method])
     }
-    return MethodContext(
-        networks=networks,
-        hull=settings.hull,
-        intrinsics=camera,
-        eps=settings.eps,
-        n_views=settings.n_views,
-        volumetric=settings.ig,
+    return with_shipped(
+        MethodContext(
+            networks=networks,
+            hull=settings.hull,
+            intrinsics=camera,
+            eps=settings.eps,
+            n_views=settings.n_views,
+            volumetric=settings.ig,
+        )
     )
 
 
@@ -59,7 +63,7 @@ def load_network(
     settings: ScanSettings, n_views: int | None, name: str
 ) -> NetworkPolicy | ConditionedPolicy:
     """The network policy of the network method ``name`` the plan runs: ``checkpoint``, else
-    the weights the package ships (:meth:`nbv.policies.registry.Method.weights`).
+    the weights the package ships (:func:`nbv.scan.shipped.resolve_weights`).
 
     Raises:
         ValueError: no weights, or a file that is not a usable checkpoint (``checkpoint: ...``).
@@ -67,7 +71,7 @@ def load_network(
     from nbv.models.checkpoints import CheckpointError
 
     method = METHODS[name]
-    path = method.weights(settings.checkpoint)
+    path = resolve_weights(name, settings.checkpoint)
     try:
         return method.load(path, n_views)
     except CheckpointError as err:
