@@ -53,6 +53,7 @@ from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import DEFAULT_METHODS, GEOMETRIC, check_methods
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
 from nbv.policies.volumetric import InformationGainPolicy
+from nbv.scan.shipped import with_shipped
 from nbv.setcover.settings import HullSettings
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -650,7 +651,9 @@ def test_hull_policies_get_the_dilation_setting():
     networks = {"pcnbv_sph_vig": NetworkPolicy(model=model, input="signature")}
     two_stage = ("hull_ig", "vig_hull_sco", "vig_hull_sco_matched", "vig_hull_sco_sph")
     for dilate in (False, True):
-        ctx = MethodContext(networks, HullSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
+        ctx = with_shipped(
+            MethodContext(networks, HullSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
+        )
         for method in GEOMETRIC:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
             hull = policy.hull if method in two_stage else policy

@@ -6,11 +6,9 @@ import pytest
 import trimesh
 
 from nbv.assets.catalogues import (
-    SOURCES,
     CatalogueError,
     MeshEntry,
     bop_catalogue,
-    catalogue,
     check_catalogue,
     folder_catalogue,
     homebrew_catalogue,
@@ -19,6 +17,7 @@ from nbv.assets.catalogues import (
     stanford_catalogue,
 )
 from nbv.assets.categories import SHAPENET_TRAIN_CATEGORIES, SHAPENET_UNSEEN_CATEGORIES
+from nbv.assets.mesh_sources import MESH_SOURCES, catalogue
 from nbv.assets.meshes import (
     MESH_SUFFIXES,
     Mesh,
@@ -508,7 +507,7 @@ def test_folder_catalogue_errors(tmp_path):
 
 
 def test_catalogue_dispatch_errors(tmp_path):
-    with pytest.raises(CatalogueError, match="'modelnet'.*" + ", ".join(SOURCES)):
+    with pytest.raises(CatalogueError, match="'modelnet'.*" + ", ".join(MESH_SOURCES)):
         catalogue("modelnet", tmp_path)
     with pytest.raises(CatalogueError, match="only 'shapenet'"):
         catalogue("folder", tmp_path, ["chair"])

@@ -14,10 +14,10 @@ import pytest
 import trimesh
 from datagen import small_settings
 
-from nbv.assets.catalogues import CatalogueError, catalogue, scans_catalogue, ycb_catalogue
+from nbv.assets.catalogues import CatalogueError, scans_catalogue, ycb_catalogue
+from nbv.assets.mesh_sources import MESH_SOURCES, catalogue
 from nbv.assets.meshes import load_mesh, normalise
 from nbv.assets.real_objects import (
-    LICENCES,
     SCANS,
     SCANS_DEFAULT_ROOT,
     RealObjectsMissing,
@@ -151,6 +151,6 @@ def test_a_scans_dataset_records_its_licence(tmp_path):
     summary = generate(settings)
     assert summary.complete == 1
     with h5py.File(summary.shard_file, "r") as handle:
-        assert handle.attrs["licence"] == LICENCES["scans"]
+        assert handle.attrs["licence"] == MESH_SOURCES["scans"].licence
         assert handle["models/cow"].attrs["category"] == "animal"
         assert handle["models/cow"].attrs["source"] == "scans"

@@ -43,6 +43,7 @@ from nbv.models.completion import (
     parameter_count,
 )
 from nbv.models.completion_inference import save_completion
+from nbv.models.networks import fresh_network
 from nbv.models.precision import autocast, resolve_precision
 from nbv.utils.atomic import atomic_path, write_text
 from nbv.utils.fields import at_least, between, one_of, positive
@@ -242,7 +243,7 @@ def run(settings: CompletionSettings) -> dict:
     if len(train_idx) == 0 or len(valid_idx) == 0:
         raise ConfigError(f"{settings.data_dir}: no training or no validation models")
     config = settings.model_config()
-    model = CompletionNet(config)
+    model = fresh_network("completion", config)
     optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
     identity = settings.identity()
     done, best = _resume(out_dir, identity, model, optimizer)

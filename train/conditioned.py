@@ -51,8 +51,8 @@ from nbv.infogain.gain import candidate_voxels
 from nbv.infogain.occupancy import OccupancyMap, OccupancySettings
 from nbv.infogain.settings import VolumetricSettings
 from nbv.infogain.view_features import FEATURES, unvisited_features
+from nbv.models.networks import fresh_network
 from nbv.models.view_conditioned import (
-    ViewConditionedNet,
     load_conditioned,
     save_conditioned,
 )
@@ -271,7 +271,7 @@ def run(settings: ConditionedSettings) -> dict:
     val_samples = draw_samples(val_pools, settings, np.random.default_rng([settings.seed, 10**6]))
     torch.manual_seed(settings.seed)
     net = replace(settings.net, map_features=len(FEATURES) if settings.map_features else 0)
-    model = ViewConditionedNet(net)
+    model = fresh_network("vcnbv", net)
     optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
     out = settings.out_dir
     out.mkdir(parents=True, exist_ok=True)

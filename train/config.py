@@ -23,6 +23,7 @@ from nbv.config.settings import Entry, check_ranges
 from nbv.dataset.reader import SHARD_GLOB
 from nbv.geometry.viewspace import get_viewspace
 from nbv.models.config import PRECISIONS, PCNBVConfig
+from nbv.models.networks import NETWORKS
 from nbv.policies.episode import DEFAULT_START_VIEWS
 from nbv.utils.fields import at_least, check, fields_of, one_of, positive, setting
 
@@ -86,11 +87,19 @@ class ModelSettings:
         net: the network's sizes, the fields of :class:`nbv.models.config.PCNBVConfig` but
             ``n_views`` (the dataset's); a null or absent key keeps PCNBVConfig's default. Held
             as the keys given, as checkpoints store them.
+        network: the declared network it trains (:data:`nbv.models.networks.NETWORKS`; one
+            that ``python -m train`` trains).
     """
 
     name: str = "pcnbv"
     input: str = setting("points", allows=one_of(INPUTS))
     net: dict = setting(factory=dict, config=NetConfig, convert=_given, config_default={})
+    network: str = setting("pcnbv", allows=one_of(NETWORKS))
+
+    def __post_init__(self) -> None:
+        trainer = NETWORKS[self.network].trainer if self.network in NETWORKS else "train"
+        if trainer != "train":
+            raise ConfigError(f"model.network={self.network}: trained by python -m {trainer}")
 
 
 @dataclass(frozen=True)
@@ -236,6 +245,8 @@ def stored_settings(settings: TrainSettings) -> dict:
             out["score"] = value.name
         elif f.name == "model":
             out.update(model_name=value.name, input=value.input, net=dict(value.net))
+            if value.network != "pcnbv":  # the runs made before networks were declared
+                out["network"] = value.network
         else:
             out[f.name] = value
     return json.loads(json.dumps(out, default=str))

@@ -37,8 +37,8 @@ from tqdm import tqdm
 import nbv.dataset
 from nbv.dataset.samples import SampleSet, load_samples
 from nbv.models.checkpoints import load_checkpoint, save_checkpoint
-from nbv.models.config import PCNBVConfig
 from nbv.models.inference import for_inference
+from nbv.models.networks import fresh_network
 from nbv.models.pcnbv import PCNBV
 from nbv.models.precision import autocast, flush_denormals
 from nbv.policies.episode import auc, run_episode
@@ -149,10 +149,12 @@ def predict(
 def fresh_training(
     settings: TrainSettings, n_views: int, device: torch.device
 ) -> tuple[PCNBV, torch.optim.Optimizer, torch.optim.lr_scheduler.StepLR]:
-    """A fresh network of ``settings.model`` with ``n_views`` outputs (initialised from
-    ``settings.seed``), its Adam optimiser at ``lr`` and the step decay of the learning rate."""
+    """A fresh network of ``settings.model`` (its declared ``network``) with ``n_views``
+    outputs (initialised from ``settings.seed``), its Adam optimiser at ``lr`` and the step decay
+    of the learning rate."""
     torch.manual_seed(settings.seed)
-    model = PCNBV(PCNBVConfig(n_views=n_views, **settings.model.net)).to(device)
+    model = fresh_network(settings.model.network, n_views=n_views, **settings.model.net)
+    model = model.to(device)
     optimizer = torch.optim.Adam(model.parameters(), lr=settings.lr)
     scheduler = torch.optim.lr_scheduler.StepLR(
         optimizer, settings.lr_step_epochs, settings.lr_decay

@@ -2,6 +2,8 @@
 
 * :mod:`~nbv.assets.meshes`: loading, validation, normalisation, surface sampling.
 * :mod:`~nbv.assets.catalogues`: ShapeNet, Stanford, BOP (Linemod, HomebrewDB), any folder.
+* :mod:`~nbv.assets.mesh_sources`: the one declaration of the mesh sources: name, licence,
+  catalogue, installed copy, splits, the evaluator's dataset name.
 * :mod:`~nbv.assets.categories`: the one table of the 16 PC-NBV categories.
 * :mod:`~nbv.assets.synthetic`: procedural shapes imitating those categories, and their preview.
 

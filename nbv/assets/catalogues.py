@@ -1,7 +1,8 @@
 """Catalogues of mesh datasets as the user has them on disk.
 
 ShapeNetCore v1/v2, Stanford, BOP (Linemod, HomebrewDB), any folder of meshes, and the real
-objects that install here (YCB, CGAL's scans: :mod:`nbv.assets.real_objects`)."""
+objects that install here (YCB, CGAL's scans: :mod:`nbv.assets.real_objects`). Which source
+reads which catalogue: :mod:`nbv.assets.mesh_sources`."""
 
 from __future__ import annotations
 
@@ -16,10 +17,6 @@ from tqdm import tqdm
 from nbv.assets.categories import SHAPENET_CATEGORIES
 from nbv.assets.meshes import MESH_SUFFIXES, MeshError, load_mesh
 from nbv.assets.real_objects import SCANS, ycb_group
-
-#: Catalogue sources accepted by :func:`catalogue`.
-SOURCES = ("shapenet", "stanford", "linemod", "homebrew", "folder", "ycb", "scans")
-
 
 #: BOP model folders, in order of preference (the first one present is used).
 BOP_MODEL_DIRS = ("models", "models_eval", "models_reconst")
@@ -44,7 +41,8 @@ class MeshEntry:
             file name and an HDF5 group name.
         path: the mesh file.
         category: the category name (``"chair"``, ``"bunny"``, ``"obj_000001"``, ...).
-        source: the catalogue it comes from, one of :data:`SOURCES`.
+        source: the catalogue it comes from (a name of
+            :data:`nbv.assets.mesh_sources.MESH_SOURCES`).
     """
 
     key: str
@@ -324,36 +322,6 @@ def scans_catalogue(root: str | os.PathLike) -> list[MeshEntry]:
         )
     entries = [MeshEntry(s.key, root / s.file, s.category, "scans") for s in SCANS]
     return _finish(entries, root, "scanned models")
-
-
-def catalogue(
-    source: str, root: str | os.PathLike, categories: list[str] | None = None
-) -> list[MeshEntry]:
-    """The catalogue of ``source`` (one of :data:`SOURCES`) under ``root``.
-
-    ``categories`` is passed to :func:`shapenet_catalogue` and must be None for other sources.
-
-    Raises:
-        CatalogueError: unknown source, categories given for a source without them, or whatever
-            the source's catalogue raises.
-    """
-    if source not in SOURCES:
-        raise CatalogueError(f"unknown mesh source {source!r}; allowed: {', '.join(SOURCES)}")
-    if source == "shapenet":
-        return shapenet_catalogue(root, categories)
-    if categories is not None:
-        raise CatalogueError(
-            f"categories={categories!r} given for source {source!r}; only 'shapenet' selects "
-            "categories"
-        )
-    return {
-        "stanford": stanford_catalogue,
-        "linemod": linemod_catalogue,
-        "homebrew": homebrew_catalogue,
-        "folder": folder_catalogue,
-        "ycb": ycb_catalogue,
-        "scans": scans_catalogue,
-    }[source](root)
 
 
 def check_catalogue(

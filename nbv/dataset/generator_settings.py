@@ -16,8 +16,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from nbv.assets.mesh_sources import MESH_SOURCES
 from nbv.dataset.schema import SCHEMA_VERSION
-from nbv.dataset.sources import SOURCES
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.render.job import BACKENDS
@@ -168,7 +168,7 @@ class GeneratorSettings:
         progress: show a progress bar.
     """
 
-    source: str = setting("synthetic", allows=one_of(SOURCES))
+    source: str = setting("synthetic", allows=one_of(MESH_SOURCES))
     root: str | None = None
     categories: tuple[str, ...] | None = None
     synthetic: Synthetic = field(default_factory=Synthetic)

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from nbv.assets.mesh_sources import MESH_SOURCES, prepared_datasets
 from nbv.assets.weights import SHIPPED_SCORER
 from nbv.config.schema import (
     CameraConfig,
@@ -45,10 +46,16 @@ from nbv.policies.registry import DEFAULT_METHODS, METHODS, NETWORK_INPUTS, netw
 from nbv.setcover.settings import HullSettings
 from nbv.utils.fields import at_least, or_null, positive
 
-#: The datasets prepared from meshes (rendered, scored and cached by :mod:`nbv.eval.prepare`):
-#: name -> the dataset source they are made with (nbv.dataset.sources).
-PREPARED = {"meshes": "folder", "ycb": "ycb", "scans": "scans"}
-DATASETS = ("unseen", "test", *PREPARED)
+#: The datasets read from ``data_dir`` (a dataset of ``make dataset``); the others are prepared
+#: from a mesh source's files (:func:`nbv.assets.mesh_sources.prepared_datasets`).
+DATA_DIR_DATASETS = ("unseen", "test")
+
+
+def datasets() -> tuple[str, ...]:
+    """Every dataset name ``dataset=`` allows: ``unseen``, ``test``, then the prepared ones."""
+    return (*DATA_DIR_DATASETS, *prepared_datasets())
+
+
 #: The two viewspaces every dataset renders (the networks' and the permuted one).
 VIEWSPACES = ("original", "permuted")
 BACKENDS = ("raycast", "blender")
@@ -265,15 +272,17 @@ class EvalSettings:
             derived = ("unseen", "meshes") if self.mesh_dir else ("unseen",)
             object.__setattr__(self, "datasets", derived)
         check_allowed("methods", self.methods, tuple(METHODS))
-        check_allowed("dataset", self.datasets, DATASETS)
+        check_allowed("dataset", self.datasets, datasets())
         check_viewspaces("viewspace", self.viewspaces)
         missing = sorted(set(networks_of(self.methods)) - set(self.checkpoints))
         if missing:
             raise EvalConfigError(
                 f"checkpoints: no entry for {missing}; give checkpoints.<method>=<path of best.pt>"
             )
-        if "meshes" in self.datasets and self.mesh_dir is None:
-            raise EvalConfigError("dataset=meshes needs mesh_dir=<folder of mesh files>")
+        for name in self.datasets:
+            source = prepared_datasets().get(name)
+            if source and MESH_SOURCES[source].installed is None and self.mesh_dir is None:
+                raise EvalConfigError(f"dataset={name} needs mesh_dir=<folder of mesh files>")
         check_ranges(self)
         if not isinstance(self.hull.dilate, bool):
             raise EvalConfigError(f"hull.dilate={self.hull.dilate!r}: must be true or false")

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import nbv.dataset
 from nbv.assets.categories import TRAIN_CATEGORIES, UNSEEN_CATEGORIES
-from nbv.assets.real_objects import default_root
+from nbv.assets.mesh_sources import MESH_SOURCES, prepared_datasets
 from nbv.dataset.reader import Dataset
-from nbv.eval.config import PREPARED, EvalSettings
+from nbv.eval.config import EvalSettings
 from nbv.eval.prepare import prepare_meshes, rendered_viewspaces, stored_name
 from nbv.policies.method import MethodContext
 from nbv.policies.network import NetworkPolicy
@@ -83,19 +83,20 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
             a start view outside a viewspace.
     """
     out = []
+    prepared = prepared_datasets()
     for name in settings.datasets:
         failures: list[tuple[str, str]] = []
-        if name in PREPARED:
-            source = PREPARED[name]
-            root = Path(settings.mesh_dir) if source == "folder" else default_root(source)
-            path, failures = prepare_meshes(root, settings.prepare, settings.progress, source)
+        if name in prepared:
+            source = MESH_SOURCES[prepared[name]]
+            root = source.installed() if source.installed else Path(settings.mesh_dir)
+            path, failures = prepare_meshes(root, settings.prepare, settings.progress, source.name)
         else:
             path = Path(settings.data_dir)
         try:
             ds = nbv.dataset.open(path, eps=settings.prepare.eps)
         except ValueError as err:
             raise EvalDataError(f"dataset={name} (data_dir={str(path)!r}): {err}") from None
-        if name in PREPARED:
+        if name in prepared:
             keys = ds.keys()
         else:
             wanted = UNSEEN_CATEGORIES if name == "unseen" else TRAIN_CATEGORIES
@@ -103,7 +104,7 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
         if not keys:
             which = (
                 "models"
-                if name in PREPARED
+                if name in prepared
                 else (
                     f"test-split models of the 8 {'unseen' if name == 'unseen' else 'training'} "
                     "categories"
@@ -173,7 +174,7 @@ def dataset_context(
 def exclude_selection(info: DatasetInfo, ds: Dataset, networks: dict[str, NetworkPolicy]) -> None:
     """Leave out of ``info.keys`` the models whose episodes chose a network's checkpoint, for
     every method (the comparison stays paired), noting each in ``info.excluded``."""
-    if info.name in PREPARED:
+    if info.name in prepared_datasets():
         return
     keep = []
     for key in info.keys:

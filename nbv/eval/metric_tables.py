@@ -20,44 +20,16 @@ and of the pairs.
 from __future__ import annotations
 
 from collections import defaultdict
-from dataclasses import dataclass
 
 import numpy as np
 
-from nbv.eval.metrics import REACH_FRACTIONS
+from nbv.eval.metrics import REACH_FRACTIONS, mean_keys, paired_metrics
 from nbv.eval.statistics import method_rank, repeat_mean
 from nbv.eval.tables import fmt
 from nbv.policies.registry import RANDOM, SPREAD
 from nbv.utils.markdown import md_table
 from nbv.utils.stats import bootstrap_mean
 
-
-@dataclass(frozen=True)
-class Metric:
-    """One reported metric: its key in the record's metrics (``views_to_*``: restricted
-    counts), its column title, digits, and whether lower is better."""
-
-    key: str
-    title: str
-    digits: int = 3
-    lower_better: bool = False
-
-
-#: The metrics with paired intervals, in report order.
-PAIRED: tuple[Metric, ...] = (
-    Metric("final_coverage", "final coverage"),
-    *(Metric(f"views_to_{n}", f"views to {n} %", 2, True) for n in REACH_FRACTIONS),
-    Metric("chamfer", "Chamfer", 5, True),
-    Metric("fscore_eps", "F-score eps"),
-    Metric("fscore_2eps", "F-score 2 eps"),
-    Metric("path_length", "path", 2, True),
-)
-#: The plain means written to summary.csv (views to reach: the mean of the uncensored ones).
-MEANS: tuple[str, ...] = (
-    "final_coverage", "full_coverage", "chamfer_accuracy", "chamfer_completeness", "chamfer",
-    "precision_eps", "recall_eps", "fscore_eps", "precision_2eps", "recall_2eps", "fscore_2eps",
-    "path_length", "shortest_path",
-)  # fmt: skip
 #: The timing stages, summed over the columns of the per-decision table: ``map update``
 #: builds what the method scores from (the occupancy map, the sampled cloud, the signature, the
 #: hull), ``scoring`` scores the candidates (gains, the network, the view simulation, the cover).
@@ -79,7 +51,7 @@ def episode_values(records: list, n_views: int) -> dict[tuple, dict[tuple[str, i
 
     Returns:
         (dataset, viewspace, method, check) -> (model key, start) -> metric -> value: the keys of
-        :data:`MEANS`, ``views_to_<n>`` (restricted, see the module docstring),
+        ``mean_keys()``, ``views_to_<n>`` (restricted, see the module docstring),
         ``reached_<n>`` (mean views of the repeats that reached it, NaN if none did),
         ``censored_<n>`` (the fraction of repeats censored), ``decisions``, ``stage_<s>``
         (seconds of stage ``s`` per decision), ``ties`` and ``tie_decisions`` (the summed
@@ -93,7 +65,7 @@ def episode_values(records: list, n_views: int) -> dict[tuple, dict[tuple[str, i
     for group, episodes in by.items():
         out[group] = {}
         for episode, rs in episodes.items():
-            row = {k: repeat_mean([_number(r.metrics.get(k)) for r in rs]) for k in MEANS}
+            row = {k: repeat_mean([_number(r.metrics.get(k)) for r in rs]) for k in mean_keys()}
             for n in REACH_FRACTIONS:
                 got = [r.metrics.get(f"views_to_{n}") for r in rs]
                 row[f"views_to_{n}"] = repeat_mean([n_views + 1 if v is None else v for v in got])
@@ -123,7 +95,7 @@ def summaries(values: dict) -> dict[tuple, dict[str, float]]:
     """Means over the episodes of each group of :func:`episode_values`.
 
     Returns:
-        group -> ``episodes``, each key of :data:`MEANS` and ``stage_<s>``, ``decisions``;
+        group -> ``episodes``, each key of ``mean_keys()`` and ``stage_<s>``, ``decisions``;
         ``views_to_<n>`` (the mean over the episodes that reached it), ``censored_<n>`` (how many
         episodes were censored: a stochastic method's repeats count as fractions of one),
         ``restricted_<n>`` (the mean restricted count); ``ties`` and ``tie_decisions`` (sums
@@ -133,7 +105,7 @@ def summaries(values: dict) -> dict[tuple, dict[str, float]]:
     for group, episodes in values.items():
         rows = list(episodes.values())
         s = {"episodes": len(rows)}
-        for k in (*MEANS, "decisions", *(f"stage_{x}" for x in DECISION_STAGES)):
+        for k in (*mean_keys(), "decisions", *(f"stage_{x}" for x in DECISION_STAGES)):
             s[k] = _mean(r[k] for r in rows)
         for n in REACH_FRACTIONS:
             s[f"views_to_{n}"] = _mean(r[f"reached_{n}"] for r in rows)
@@ -213,6 +185,7 @@ def metrics_tables(records, datasets, viewspaces, n_views: int, seed: int) -> li
 
 def _paired_section(values, base, datasets, viewspaces, n_views, seed) -> list[str]:
     lines = []
+    paired = paired_metrics()
     for d in datasets:
         for vs in viewspaces:
             a = (d, vs, base, None)
@@ -223,7 +196,7 @@ def _paired_section(values, base, datasets, viewspaces, n_views, seed) -> list[s
             rows = []
             for b in others:
                 cells = []
-                for m in PAIRED:
+                for m in paired:
                     diff = paired_metric(values, a, b, m.key, seed)
                     cells.append(diff.text(m.digits) if diff else "")
                 rows.append([b[2], *cells])
@@ -240,7 +213,7 @@ def _paired_section(values, base, datasets, viewspaces, n_views, seed) -> list[s
                     f"(the restricted count; see the table above for the censored episodes).",
                 ]
             lines += [f"\n**{d}, {vs} viewspace**\n"]
-            lines += md_table(["method", *(m.title for m in PAIRED)], rows)
+            lines += md_table(["method", *(m.title for m in paired)], rows)
     return lines
 
 

@@ -25,6 +25,9 @@ viewspace's arc matrix, so an episode's metrics cost a few vector operations.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -44,6 +47,87 @@ from nbv.geometry.scores import coverage_from_bits
 REACH_FRACTIONS: dict[str, float] = {"90": 0.90, "95": 0.95}
 #: The F-score thresholds, as multiples of the dataset's ``eps``.
 FSCORE_MULTIPLES = (1, 2)
+#: How a metric is aggregated over episodes: ``mean`` (the mean of its finite values), or
+#: ``censored`` (views to reach a share of the coverage: the mean over the episodes that reach
+#: it, the censored ones counted, and the restricted count paired; :mod:`nbv.eval.metric_tables`).
+AGGREGATIONS = ("mean", "censored")
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One metric of an episode: the one declaration the evaluator, the report's tables and the
+    plots read (docs/development.md, "Adding a metric").
+
+    Attributes:
+        key: its key in an episode's ``metrics`` (results.json, the episode log, summary.csv).
+        title: its column title in the report's paired table.
+        digits: the digits it is written with.
+        lower_better: a lower value is better (Chamfer distance, views to reach, path).
+        paired: the report gives its paired differences against spread and random.
+        aggregate: how it is aggregated over episodes (:data:`AGGREGATIONS`).
+        panel: its panel's title in metrics.png; None: not drawn.
+        compute: ``(model metrics, viewspace, views, coverage curve) -> value`` (a float, NaN
+            where undefined); None for the metrics :meth:`ModelMetrics.episode` computes
+            together (they share the ground truth's distances).
+    """
+
+    key: str
+    title: str
+    digits: int = 3
+    lower_better: bool = False
+    paired: bool = False
+    aggregate: str = "mean"
+    panel: str | None = None
+    compute: Callable[[ModelMetrics, str, list[int], list[float]], float] | None = None
+
+    def __post_init__(self) -> None:
+        if self.aggregate not in AGGREGATIONS:
+            raise ValueError(f"metric {self.key}: aggregate={self.aggregate!r}; allowed: "
+                             f"{AGGREGATIONS}")  # fmt: skip
+
+    @property
+    def summary_key(self) -> str:
+        """Its key in a group's summary (:func:`nbv.eval.metric_tables.summaries`): a censored
+        metric's restricted count, else its key."""
+        return (
+            f"restricted_{self.key.rsplit('_', 1)[1]}" if self.aggregate == "censored" else self.key
+        )
+
+
+#: Every metric of an episode, in report order (the one place that declares them).
+METRICS: tuple[Metric, ...] = (
+    Metric("final_coverage", "final coverage", paired=True, panel="final coverage"),
+    Metric("full_coverage", "full coverage"),
+    Metric("views_to_90", "views to 90 %", 2, True, paired=True, aggregate="censored",
+           panel="views to 90 % (censored: n + 1)"),
+    Metric("views_to_95", "views to 95 %", 2, True, paired=True, aggregate="censored"),
+    Metric("chamfer_accuracy", "Chamfer accuracy", 5, True),
+    Metric("chamfer_completeness", "Chamfer completeness", 5, True),
+    Metric("chamfer", "Chamfer", 5, True, paired=True, panel="Chamfer distance (lower: better)"),
+    Metric("precision_eps", "precision eps"),
+    Metric("recall_eps", "recall eps"),
+    Metric("fscore_eps", "F-score eps", paired=True),
+    Metric("precision_2eps", "precision 2 eps"),
+    Metric("recall_2eps", "recall 2 eps"),
+    Metric("fscore_2eps", "F-score 2 eps", paired=True, panel="F-score at 2 eps"),
+    Metric("path_length", "path", 2, True, paired=True, panel="camera path (lower: better)"),
+    Metric("shortest_path", "shortest path", 2, True),
+)  # fmt: skip
+
+
+def paired_metrics() -> tuple[Metric, ...]:
+    """The metrics with paired intervals in the report, in report order."""
+    return tuple(m for m in METRICS if m.paired)
+
+
+def mean_keys() -> tuple[str, ...]:
+    """The keys of the metrics aggregated by their mean (summary.csv's columns), in order."""
+    return tuple(m.key for m in METRICS if m.aggregate == "mean")
+
+
+def plot_panels() -> tuple[tuple[str, str], ...]:
+    """metrics.png's panels: (summary key, title), in order."""
+    return tuple((m.summary_key, m.panel) for m in METRICS if m.panel is not None)
 
 
 class ModelMetrics:
@@ -110,6 +194,9 @@ class ModelMetrics:
             out["shortest_path"] = shortest_open_path(arcs[np.ix_(views, views)])[0]
         else:
             out["shortest_path"] = float("nan")
+        for metric in METRICS:
+            if metric.compute is not None:
+                out[metric.key] = float(metric.compute(self, viewspace, views, coverage))
         return out
 
 

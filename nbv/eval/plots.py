@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 
 from nbv.eval.disturb import auc_changes  # noqa: E402
 from nbv.eval.metric_tables import episode_values, summaries  # noqa: E402
+from nbv.eval.metrics import plot_panels  # noqa: E402
 from nbv.eval.statistics import groups, method_rank, order_methods  # noqa: E402
 from nbv.policies.registry import GEOMETRIC, METHODS, ORACLE  # noqa: E402
 from nbv.utils.atomic import save_figure
@@ -180,16 +181,6 @@ def noise_figure(evaluation, path: Path) -> bool:
     return True
 
 
-#: metrics.png's panels: (summary key, title).
-METRIC_PANELS = (
-    ("final_coverage", "final coverage"),
-    ("restricted_90", "views to 90 % (censored: n + 1)"),
-    ("chamfer", "Chamfer distance (lower: better)"),
-    ("fscore_2eps", "F-score at 2 eps"),
-    ("path_length", "camera path (lower: better)"),
-)
-
-
 def metrics_figure(evaluation, path: Path) -> bool:
     """Horizontal bars of each method's mean metrics, a row of panels per dataset and viewspace;
     False when no record has metrics."""
@@ -198,12 +189,13 @@ def metrics_figure(evaluation, path: Path) -> bool:
     rows = sorted({k[:2] for k in summary})
     if not rows:
         return False
-    size = (3.3 * len(METRIC_PANELS), 0.8 + 0.22 * len(METHODS) * len(rows))
-    fig, axes = plt.subplots(len(rows), len(METRIC_PANELS), figsize=size, squeeze=False)
+    panels = plot_panels()
+    size = (3.3 * len(panels), 0.8 + 0.22 * len(METHODS) * len(rows))
+    fig, axes = plt.subplots(len(rows), len(panels), figsize=size, squeeze=False)
     for i, (d, vs) in enumerate(rows):
         methods = order_methods(k[2] for k in summary if k[:2] == (d, vs))
         y = np.arange(len(methods))
-        for j, (key, title) in enumerate(METRIC_PANELS):
+        for j, (key, title) in enumerate(panels):
             ax = axes[i, j]
             values = [summary[(d, vs, m, None)][key] for m in methods]
             ax.barh(y, np.nan_to_num(values), color=[_style(m)[0] for m in methods])

@@ -21,11 +21,10 @@ import numpy as np
 
 from nbv.eval.metric_tables import (
     DECISION_STAGES,
-    MEANS,
     episode_values,
     summaries,
 )
-from nbv.eval.metrics import REACH_FRACTIONS
+from nbv.eval.metrics import REACH_FRACTIONS, mean_keys
 from nbv.eval.statistics import (
     groups,
     method_rank,
@@ -71,18 +70,21 @@ def write_json(evaluation, path: Path) -> None:
     write_text(path, f'{text[:-2]},\n "episodes": [\n{episodes}\n ]\n}}\n')
 
 
-#: summary.csv's columns of the field's metrics (:func:`nbv.eval.metric_tables.summaries`):
-#: ``views_to_<n>`` the mean over uncensored episodes, ``censored_<n>`` how many were censored,
-#: ``restricted_<n>`` the mean with a censored episode counted ``n_views + 1``; ``stage_<s>`` mean
-#: seconds of stage ``s`` per decision; ``ties`` and ``tie_decisions`` summed over episodes.
-METRIC_COLUMNS: tuple[str, ...] = (
-    *MEANS,
-    *(f"{k}_{n}" for n in REACH_FRACTIONS for k in ("views_to", "censored", "restricted")),
-    "decisions",
-    *(f"stage_{s}" for s in DECISION_STAGES),
-    "ties",
-    "tie_decisions",
-)
+def metric_columns() -> tuple[str, ...]:
+    """summary.csv's columns of the field's metrics (:func:`nbv.eval.metric_tables.summaries`):
+    the metrics aggregated by their mean (:func:`nbv.eval.metrics.mean_keys`); ``views_to_<n>``
+    the mean over uncensored episodes, ``censored_<n>`` how many were censored,
+    ``restricted_<n>`` the mean with a censored episode counted ``n_views + 1``; ``stage_<s>``
+    mean seconds of stage ``s`` per decision; ``ties`` and ``tie_decisions`` summed over
+    episodes."""
+    return (
+        *mean_keys(),
+        *(f"{k}_{n}" for n in REACH_FRACTIONS for k in ("views_to", "censored", "restricted")),
+        "decisions",
+        *(f"stage_{s}" for s in DECISION_STAGES),
+        "ties",
+        "tie_decisions",
+    )
 
 
 def write_csv(evaluation, path: Path) -> None:
@@ -94,7 +96,8 @@ def write_csv(evaluation, path: Path) -> None:
     header += [f"coverage_{i + 1}" for i in range(n_views)]
     header += [f"vig_{i + 1}" for i in range(n_views)]
     header += ["seconds_total", "seconds_online"]
-    header += list(METRIC_COLUMNS)
+    columns = metric_columns()
+    header += list(columns)
     metrics = summaries(episode_values(evaluation.records, n_views))
     handle = io.StringIO()
     writer = csv.writer(handle, lineterminator="\n")
@@ -111,6 +114,6 @@ def write_csv(evaluation, path: Path) -> None:
         row += ["" if not np.isfinite(v) else f"{v:.6f}" for v in s["vig"]]
         row += [f"{s['total']:.6f}", f"{s['online']:.6f}"]
         m = metrics.get((dataset, vs, method, check))
-        row += [_cell(m.get(c)) if m else "" for c in METRIC_COLUMNS]
+        row += [_cell(m.get(c)) if m else "" for c in columns]
         writer.writerow(row)
     write_text(path, handle.getvalue())

@@ -17,6 +17,8 @@ Modules, each importing only the ones above it:
 - :mod:`nbv.models.inference`: :func:`for_inference` (batch norm folded; in float32 the
   rewritten :class:`InferencePCNBV`, 23 % fewer FLOPs; in bfloat16 bfloat16 weights) and
   :func:`masked_argmax`, the best unvisited view.
+- :mod:`nbv.models.networks`: :data:`NETWORKS`, the one declaration of the networks trained
+  (sizes, module, trainer), and :func:`fresh_network`.
 - :mod:`nbv.models.checkpoints`: :func:`save_checkpoint`, :func:`load_checkpoint`,
   :class:`CheckpointError`.
 

@@ -19,6 +19,7 @@ import torch
 from nbv.geometry.clouds import farthest_points, fill_in
 from nbv.models.checkpoints import CheckpointError, read_payload, write_payload
 from nbv.models.completion import CompletionConfig, CompletionNet
+from nbv.models.networks import network_class
 from nbv.models.precision import autocast, flush_denormals
 
 #: The format tag of a completion checkpoint.
@@ -45,7 +46,7 @@ def load_completion(path: str | os.PathLike[str]) -> tuple[CompletionNet, dict[s
     payload = read_payload(path, COMPLETION_FORMAT, COMPLETION_VERSION, "completion")
     try:
         config = CompletionConfig.from_dict(payload["config"])
-        model = CompletionNet(config)
+        model = network_class("completion")(config)
         model.load_state_dict({k: v.float() for k, v in payload["state_dict"].items()}, strict=True)
     except (TypeError, ValueError, RuntimeError) as e:
         reason = " ".join(str(e).split())

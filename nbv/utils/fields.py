@@ -10,7 +10,7 @@ way whether they come from a config or from code.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -48,8 +48,9 @@ def between(low: float, high: float, closed: str = "[]") -> Allows:
     return Allows(lambda v: above(v) and below(v), f"in {closed[0]}{low}, {high}{closed[1]}")
 
 
-def one_of(names: tuple[str, ...], hint: str = "") -> Allows:
-    """``value in names``: "one of a, b, c" (and ``hint``, written right after)."""
+def one_of(names: Collection[str], hint: str = "") -> Allows:
+    """``value in names``: "one of a, b, c" (and ``hint``, written right after). ``names`` is
+    read when a value is checked: a dict of declarations may gain rows later."""
     return Allows(lambda v: v in names, f"one of {', '.join(names)}{hint}")
 
 
