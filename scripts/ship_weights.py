@@ -6,7 +6,7 @@
 A checkpoint of PCNBV, PCNBV-sph, the viewspace-conditioned or the completion network (told
 apart by the checkpoint's format) is written as shipped weights: bfloat16 tensors, the optimizer
 state dropped, and in ``extra["shipped"]`` the command that made it, the dataset and its identity
-(:func:`train.records.dataset_identity`) and the source file. Only those who ship weights with the
+(:func:`train.run_log.dataset_identity`) and the source file. Only those who ship weights with the
 package need it; users train with ``python -m train`` and evaluate their own ``best.pt``.
 """
 
@@ -25,7 +25,7 @@ from nbv.models.checkpoints import (
 )
 from nbv.models.completion_inference import COMPLETION_FORMAT, load_completion, save_completion
 from nbv.models.view_conditioned import CONDITIONED_FORMAT, load_conditioned, save_conditioned
-from train.records import dataset_identity
+from train.run_log import dataset_identity
 
 #: Checkpoint format -> its reader and writer.
 FORMATS = {
@@ -37,7 +37,7 @@ FORMATS = {
 
 def data_identity(src_format: str | None, dataset: Path) -> str:
     """The identity of what the checkpoint was trained on: a dataset's
-    (:func:`train.records.dataset_identity`), or for the completion network the hash of its
+    (:func:`train.run_log.dataset_identity`), or for the completion network the hash of its
     data shards' names and settings."""
     if src_format != COMPLETION_FORMAT:
         return dataset_identity(dataset)

@@ -15,7 +15,7 @@ from nbv.dataset.generator import generate
 from nbv.dataset.generator_settings import GeneratorSettings, Renderer, Synthetic
 from nbv.geometry.camera import Intrinsics, project
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.plan.config import PlanSettings
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import run_episode
@@ -25,7 +25,7 @@ from nbv.scan.method import policy_rng
 from nbv.scan.planner import Planner
 from nbv.scan.result import PlanResult
 from nbv.scan.shipped import with_shipped
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 CAMERA = Intrinsics.centred(64, 48, 48.0)
 EPS = DEFAULT_EPS
@@ -54,7 +54,7 @@ def episode_views(model, method: str) -> list[int]:
     if NETWORK_INPUTS.get(method) == "directions":
         networks[method] = ConditionedPolicy.from_checkpoint(shipped_weights(method))
     ctx = with_shipped(
-        MethodContext(networks, HullSettings(), CAMERA, EPS, 10, VolumetricSettings())
+        MethodContext(networks, SetCoverSettings(), CAMERA, EPS, 10, InfoGainSettings())
     )
     policy = METHODS[method].build(ctx, policy_rng(0, method))
     return run_episode(model, "original", START, policy, 10).views

@@ -10,7 +10,7 @@ from nbv.dataset.generator import generate
 from nbv.dataset.generator_settings import GeneratorSettings, Renderer, Synthetic
 from nbv.dataset.samples import SampleSettings, write_samples
 from nbv.geometry.camera import Intrinsics
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 
 SMALL_CAMERA = Intrinsics.centred(64, 48, 48.0)
 
@@ -91,4 +91,4 @@ def make_tiny_dataset(out: Path, models: int = 2, keep_depth: bool = False) -> P
 
 
 #: The information-gain planner on the small camera: coarse voxels, 4-pixel background blocks.
-VOLUMETRIC = VolumetricSettings(resolution=0.04, columns=8, block=4)
+VOLUMETRIC = InfoGainSettings(resolution=0.04, columns=8, block=4)

@@ -7,7 +7,7 @@ from pathlib import Path
 from nbv.eval.config import DisturbSettings, EvalSettings
 from nbv.policies.method import CHECKS
 from nbv.policies.registry import NETWORK_INPUTS
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 #: The start views of the tiny evaluations.
 STARTS = (1, 24)
@@ -25,7 +25,7 @@ def tiny_settings(
         start_views=STARTS,
         disturb=DisturbSettings(checks=checks, start_views=disturb_start_views),
         checkpoints={name: str(tiny[name]) for name in NETWORK_INPUTS},
-        hull=HullSettings(n_samp=2048),
+        setcover=SetCoverSettings(n_samp=2048),
         progress=False,
     )
     base.update(kw)

@@ -7,7 +7,7 @@ import trimesh
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.infogain.gain import candidate_voxels
 from nbv.infogain.occupancy import OccupancyMap, background_directions
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.render.raycast import render_raycast
 
 
@@ -62,7 +62,7 @@ def pocket_scene():
     poses = viewspace_poses(directions)
     depth = render_raycast(mesh.vertices, mesh.faces, poses, camera)
     captured = np.arange(len(directions)) < INTO_POCKET
-    occupancy = OccupancyMap(VolumetricSettings().occupancy())
+    occupancy = OccupancyMap(InfoGainSettings().occupancy())
     for v in np.flatnonzero(captured):
         points = backproject(depth[v], camera, poses[v])
         misses = background_directions(points, poses[v], camera, block=4)

@@ -18,9 +18,9 @@ from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.viewspace import original_viewspace
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState, run_episode
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.inputs import NO_SPREAD
 from nbv.policies.network import MAX_BATCH, NetworkPolicy, chunk_size
-from nbv.policies.volumetric import InformationGainPolicy
 
 log = logging.getLogger(__name__)
 
@@ -149,7 +149,7 @@ def test_lockstep_episodes_take_the_views_of_one_at_a_time_episodes(dataset, met
         proto = ConditionedPolicy.from_checkpoint(shipped_weights(method))
 
         def fresh():
-            return proto.fresh(InformationGainPolicy(VOLUMETRIC, dataset.intrinsics))
+            return proto.fresh(InfoGainPolicy(VOLUMETRIC, dataset.intrinsics))
 
     alone = [run_episode(model, "original", s, fresh()).views for s in starts]
     episodes = [fresh() for _ in starts]

@@ -242,7 +242,7 @@ def unseen_dataset(tmp_path_factory):
 def test_completion_gain_with_the_true_surface_nears_the_oracle(unseen_dataset):
     """Given the true surface as its completion, the default rule comes near the oracle and
     beats [15]'s rule as the authors ran it (docs/methods.md gives the full-size numbers)."""
-    from nbv.policies.baselines import OraclePolicy
+    from nbv.policies.reference import OraclePolicy
 
     ds = unseen_dataset
     gaps, authors = [], []

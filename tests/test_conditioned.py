@@ -14,7 +14,7 @@ from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
 from nbv.geometry.scores import coverage_gains
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.infogain.view_features import FEATURES
 from nbv.models.checkpoints import CheckpointError
 from nbv.models.view_conditioned import (
@@ -25,7 +25,7 @@ from nbv.models.view_conditioned import (
 )
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import EpisodeState, run_episode
-from nbv.policies.volumetric import InformationGainPolicy
+from nbv.policies.infogain import InfoGainPolicy
 from train.conditioned import _pool, draw_samples, run, split_models
 from train.conditioned_config import VIEWSPACES, ConditionedSettings
 from train.scorer import mixed_views
@@ -155,7 +155,7 @@ def test_training_map_features_are_those_the_policy_reads(dataset):
     model = ds.model(ds.keys(split="train")[1], VIEWSPACES)
     settings = ConditionedSettings(dataset, dataset / "x", trajectories=2, steps=5, candidates=12,
                                    train_points=50, map_features=True)  # fmt: skip
-    pool = _pool(model, ds.intrinsics, VolumetricSettings())
+    pool = _pool(model, ds.intrinsics, InfoGainSettings())
     samples = draw_samples([pool], settings, np.random.default_rng(3))
     plain = draw_samples([_pool(model, ds.intrinsics)], replace(settings, map_features=False),
                          np.random.default_rng(3))  # fmt: skip
@@ -169,9 +169,7 @@ def test_training_map_features_are_those_the_policy_reads(dataset):
     for first in (0, 5):  # each trajectory's five samples
         pick = samples["pick"][first]
         model.views["mix"] = mixed_views(stored, np.stack([pick // n0, pick % n0], axis=1))
-        policy = ConditionedPolicy(net).fresh(
-            InformationGainPolicy(VolumetricSettings(), ds.intrinsics)
-        )
+        policy = ConditionedPolicy(net).fresh(InfoGainPolicy(InfoGainSettings(), ds.intrinsics))
         order: list[int] = []
         for i in range(first, first + 5):
             state = samples["view_state"][i]
@@ -316,7 +314,7 @@ def test_shipped_weights_load_and_replace_a_missing_checkpoint(tmp_path, dataset
     # The shipped vcnbv_map weights read map features and play with a map.
     mapped = ConditionedPolicy.from_checkpoint(shipped_weights("vcnbv_map"))
     assert mapped.reads_map and not policy.reads_map
-    mapped = mapped.fresh(InformationGainPolicy(VolumetricSettings(), ds.intrinsics))
+    mapped = mapped.fresh(InfoGainPolicy(InfoGainSettings(), ds.intrinsics))
     episode = run_episode(ds.model(ds.keys(split="valid")[0]), "permuted", 3, mapped)
     assert len(set(episode.views)) == 10
     missing = str(tmp_path / "no.pt")

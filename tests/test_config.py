@@ -209,7 +209,7 @@ def test_shared_groups_write_a_value_once():
         ("train", "score=loud", "Could not find 'score/loud'; Available options in 'score': "
                                 "coverage, vig"),
         ("train", "model.net.k=many", "model.net.k='many': must be an integer"),
-        ("eval", "hull.dilate=maybe", "hull.dilate='maybe': must be true or false"),
+        ("eval", "setcover.dilate=maybe", "setcover.dilate='maybe': must be true or false"),
         ("eval", "start_views=abc", "start_views='abc': must be a list"),
         ("bench", "network=sometimes", "network='sometimes': must be true or false"),
         ("train_conditioned", "net.view_channels=wide", "net.view_channels='wide': must be a "
@@ -236,8 +236,15 @@ def test_hydra_refuses_unknown_keys_and_wrong_types_naming_the_key(name, overrid
         ("eval", "random_repeats=0", "random_repeats=0: must be an integer >= 1"),
         ("train", "+model.net.width=3", "model.net.width: unknown key; allowed: k, growth"),
         ("train", "fold=9", "fold=9: must be an integer in 0..7"),
-        ("eval", "hull.simulation=guess", "hull.simulation='guess': must be one of analytic"),
-        ("eval", "+hull.radius=2", "hull.radius: unknown key; allowed: n_samp, simulation"),
+        (
+            "eval",
+            "setcover.simulation=guess",
+            "setcover.simulation='guess': must be one of analytic",
+        ),
+        ("eval", "+setcover.radius=2", "setcover.radius: unknown key; allowed: n_samp, simulation"),
+        # The keys renamed by issue 55 name their new key.
+        ("eval", "hull.dilate=true", "hull: renamed setcover"),
+        ("plan", "ig.resolution=0.01", "ig: renamed infogain"),
         ("bench", "checkpoint=/nowhere/best.pt", "checkpoint='/nowhere/best.pt': no such file"),
         ("train_conditioned", "net.head_channels=[0]", "net.head_channels=[0]: must be a non-"),
         ("train_conditioned", "epochs=0", "epochs=0: must be an integer >= 1"),

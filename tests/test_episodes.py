@@ -8,8 +8,8 @@ from datagen import small_settings
 
 import nbv.dataset
 from nbv.dataset.generator import generate
-from nbv.policies.baselines import OraclePolicy, RandomPolicy
 from nbv.policies.episode import auc, run_episode
+from nbv.policies.reference import OraclePolicy, RandomPolicy
 
 
 @pytest.fixture(scope="module")

@@ -41,20 +41,20 @@ from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
 from nbv.eval.statistics import groups
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
-from nbv.geometry.reconstruction import cloud_scores
+from nbv.geometry.reconstruction_metrics import cloud_scores
 from nbv.geometry.scores import coverage_from_bits
 from nbv.geometry.viewspace import spread_views
 from nbv.infogain.gain_scorer import GainScorer, ScorerError, save_scorer
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.infogain.view_features import FEATURES
 from nbv.policies.episode import auc, run_episode
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.method import CHECKS, MethodContext
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import DEFAULT_METHODS, GEOMETRIC, check_methods
 from nbv.policies.registry import METHODS as METHODS_BY_NAME
-from nbv.policies.volumetric import InformationGainPolicy
 from nbv.scan.shipped import with_shipped
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -446,14 +446,14 @@ def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_pa
         (dict(dataset="meshes"), "mesh_dir"),
         (dict(disturb={"checks": ["noise"], "viewspace": ["original"], "radius": 0.5}),
          "disturb.checks: unknown 'noise'"),
-        (dict(hull={"simulation": "guess"}),
-         "hull.simulation='guess': must be one of analytic, raycast"),
+        (dict(setcover={"simulation": "guess"}),
+         "setcover.simulation='guess': must be one of analytic, raycast"),
         # OmegaConf reads yes/no/on/off as booleans; anything else is refused.
-        (dict(hull={"dilate": "maybe"}), "hull.dilate='maybe': must be true or false"),
+        (dict(setcover={"dilate": "maybe"}), "setcover.dilate='maybe': must be true or false"),
         (dict(n_views=1), "n_views=1"),
         (dict(seed="abc"), "seed='abc': must be an integer"),
         (dict(colour="red"), "colour: unknown key; allowed: run, out_root, methods"),
-        (dict(hull={"radius": 2}), "hull.radius: unknown key; allowed: n_samp, simulation"),
+        (dict(setcover={"radius": 2}), "hull.radius: unknown key; allowed: n_samp, simulation"),
         (dict(start_views=[24, 40]),
          "start_views=[40]: the viewspace 'original' has 33 views (indices 0..32)"),
         (dict(checkpoints={"pcnbv": "a.pt", "dqn": "b.pt"}), "checkpoints: unknown ['dqn']"),
@@ -518,11 +518,11 @@ def test_default_config_composes_to_the_documented_defaults():
     assert s.checkpoints["pcnbv_sph"] == "outputs/train/pcnbv_sph_coverage_fold0/best.pt"
     assert s.checkpoints["pcnbv_vig"] == "outputs/train/pcnbv_vig_fold0/best.pt"
     assert s.checkpoints["pcnbv_sph_vig"] == "outputs/train/pcnbv_sph_vig_fold0/best.pt"
-    assert s.hull.network_views == 2
+    assert s.setcover.network_views == 2
     assert s.check_start_views == (1, 10, 24)
-    assert s.hull == HullSettings() and s.hull.dilate is False
-    assert s.ig == VolumetricSettings() and s.workers == 0
-    assert compose_with(["hull.dilate=true"]).hull.dilate is True
+    assert s.setcover == SetCoverSettings() and s.setcover.dilate is False
+    assert s.infogain == InfoGainSettings() and s.workers == 0
+    assert compose_with(["setcover.dilate=true"]).setcover.dilate is True
     with_meshes = compose_with(["mesh_dir=" + str(ROOT / "tests")])
     assert with_meshes.datasets == ("unseen", "meshes")
 
@@ -652,13 +652,13 @@ def test_hull_policies_get_the_dilation_setting():
     two_stage = ("hull_ig", "vig_hull_sco", "vig_hull_sco_matched", "vig_hull_sco_sph")
     for dilate in (False, True):
         ctx = with_shipped(
-            MethodContext(networks, HullSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
+            MethodContext(networks, SetCoverSettings(dilate=dilate), SMALL_CAMERA, 0.03, 10)
         )
         for method in GEOMETRIC:
             policy = METHODS_BY_NAME[method].build(ctx, np.random.default_rng(0))
             hull = policy.hull if method in two_stage else policy
             # The volumetric ones and the view contribution of a completion have no hull.
-            if not isinstance(hull, InformationGainPolicy | CompletionGainPolicy):
+            if not isinstance(hull, InfoGainPolicy | CompletionGainPolicy):
                 assert hull.settings.dilate is dilate and hull.eps == 0.03, method
 
 

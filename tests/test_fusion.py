@@ -1,6 +1,6 @@
 """TSDF fusion of depth images (nbv.geometry.fusion) and the mesh scores
-(nbv.geometry.reconstruction.mesh_scores), on shapes with known answers rendered by the project's
-own ray caster (nbv.geometry.raycast.raycast_depth, Open3D / Embree).
+(nbv.geometry.reconstruction_metrics.mesh_scores), on shapes with known answers rendered by the
+project's own ray caster (nbv.geometry.raycast.raycast_depth, Open3D / Embree).
 
 The scene: a sphere of radius 0.5 centred off the origin, seen by 8 cameras on a Fibonacci
 lattice at distance 1.5 from its centre, 160 x 120 pixels with a focal length of 120 pixels. The
@@ -19,7 +19,7 @@ from shapes import fibonacci_sphere
 from nbv.geometry.camera import Intrinsics, look_at, opencv_to_blender, project
 from nbv.geometry.fusion import VOXELS_PER_RADIUS, FusionSettings, fuse_depth
 from nbv.geometry.raycast import raycast_depth
-from nbv.geometry.reconstruction import mesh_scores, surface_points
+from nbv.geometry.reconstruction_metrics import mesh_scores, surface_points
 from nbv.utils.fields import ConfigError
 from nbv.utils.seeding import named_rng
 

@@ -21,7 +21,7 @@ HEAVY = ("h5py", "torch", "open3d", "bpy")
         "nbv.setcover.view_sets",
         "nbv.geometry.raycast",
         "nbv.geometry.fusion",
-        "nbv.geometry.reconstruction",
+        "nbv.geometry.reconstruction_metrics",
         "nbv.policies.episode",
         "nbv.policies.registry",
         "nbv.eval.protocol",

@@ -16,17 +16,17 @@ from shapes import INTO_POCKET, cup, pocket_scene
 
 import nbv.dataset
 from nbv.assets.weights import SHIPPED_SCORER
-from nbv.bench.volumetric import decision, numpy_ray_features, plain_decision
+from nbv.bench.infogain import decision, numpy_ray_features, plain_decision
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.infogain.gain import frontier, view_gains
 from nbv.infogain.gain_scorer import GainScorer, ScorerError, load_scorer, save_scorer
 from nbv.infogain.occupancy import OccupancyMap, OccupancySettings
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.infogain.view_features import FEATURES, RAY_FEATURES, ray_features, view_features
-from nbv.policies.baselines import SpreadPolicy
 from nbv.policies.episode import EpisodeState, run_episode
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
-from nbv.policies.volumetric import InformationGainPolicy
+from nbv.policies.reference import SpreadPolicy
 from nbv.render.raycast import render_raycast
 from train.scorer import ScorerSettings, _scorer, captured, mixed_views, run
 
@@ -75,8 +75,8 @@ def tiny(tmp_path_factory):
     return data.model(data.keys()[0])
 
 
-def _map_after(model, order: list[int]) -> InformationGainPolicy:
-    policy = InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+def _map_after(model, order: list[int]) -> InfoGainPolicy:
+    policy = InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA)
     state = np.isin(np.arange(33), order)
     policy.update(EpisodeState(model.captured("original"), state, order))
     return policy
@@ -111,7 +111,7 @@ def _one_feature_scorer(name: str) -> GainScorer:
 
 def test_a_scorer_of_one_feature_plans_as_ig_or_as_spread(tiny):
     for start in (1, 10, 27):
-        ig = run_episode(tiny, "original", start, InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA))
+        ig = run_episode(tiny, "original", start, InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA))
         learned = LearnedGainPolicy(
             VOLUMETRIC, SMALL_CAMERA, scorer=_one_feature_scorer("unobserved_relative")
         )
@@ -264,7 +264,7 @@ def test_the_benchmark_references_compute_the_same_features_and_decision():
     poses = viewspace_poses(directions / np.linalg.norm(directions, axis=1, keepdims=True))
     depth = render_raycast(mesh.vertices, mesh.faces, poses, camera)
     views = [(v, backproject(depth[v], camera, poses[v])) for v in (1, 3)]
-    settings = VolumetricSettings(resolution=0.04, block=4)
+    settings = InfoGainSettings(resolution=0.04, block=4)
     scorer = load_scorer(SHIPPED_SCORER)
     assert decision(views, poses, camera, settings, scorer) == plain_decision(
         views, poses, camera, settings, scorer

@@ -27,7 +27,7 @@ from nbv.policies.method import CHECKS, MethodContext
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.policies.two_stage import NetworkThenHullPolicy
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 STARTS = (0, 1, 3, 7, 10, 15, 24, 27, 30, 32)
 VIEWSPACES = ("original", "permuted")
@@ -56,7 +56,7 @@ def shipped_fp32() -> MethodContext:
             if kind.startswith("directions")
             else NetworkPolicy.from_checkpoint(path, n_views=33, precision="fp32")
         )
-    return MethodContext(networks, HullSettings(n_samp=2048), Intrinsics.centred(64, 48, 48.0),
+    return MethodContext(networks, SetCoverSettings(n_samp=2048), Intrinsics.centred(64, 48, 48.0),
                          0.0070710678, 10)  # fmt: skip
 
 

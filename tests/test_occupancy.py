@@ -8,7 +8,7 @@ import pytest
 import trimesh
 from shapes import INTO_POCKET, cup, pocket_scene
 
-from nbv.bench.volumetric import decision, numpy_ray_gains, numpy_traverse, plain_decision
+from nbv.bench.infogain import decision, numpy_ray_gains, numpy_traverse, plain_decision
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.viewspace import spread_views
 from nbv.infogain.gain import (
@@ -28,7 +28,7 @@ from nbv.infogain.occupancy import (
     mask_directions,
 )
 from nbv.infogain.raytrace import traverse
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.render.raycast import render_raycast
 
 
@@ -234,7 +234,7 @@ def test_the_plain_decision_of_the_benchmark_is_the_planners():
     poses = viewspace_poses(np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 0], [0, 0, 1], [1, 1, 1.0]]))
     depth = render_raycast(mesh.vertices, mesh.faces, poses, camera)
     views = [(v, backproject(depth[v], camera, poses[v])) for v in (1, 3)]
-    settings = VolumetricSettings(resolution=0.04, block=4)
+    settings = InfoGainSettings(resolution=0.04, block=4)
     assert decision(views, poses, camera, settings) == plain_decision(
         views, poses, camera, settings
     )

@@ -90,7 +90,7 @@ def test_methods_that_read_the_ground_truth_are_refused_with_the_allowed_list(bo
         (["mesh=BOX", "n_views=1"], "n_views=1: must be an integer >= 2"),
         (["mesh=BOX", "object.center=[1,2]"], r"object.center=\[1.0, 2.0\]: must be"),
         (["mesh=BOX", "save_captures=11"], "save_captures=11: the episode has n_views=10"),
-        (["mesh=BOX", "hull.n_samp=0"], "hull.n_samp=0: must be an integer >= 1"),
+        (["mesh=BOX", "setcover.n_samp=0"], "setcover.n_samp=0: must be an integer >= 1"),
         (["captures=BOX", "save_captures=2"], "save_captures needs mesh="),
     ],
 )
@@ -252,14 +252,14 @@ def test_the_bench_decision_is_the_plan_from_the_same_capture_file(box, tmp_path
     from nbv.bench.plan import decide
     from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
     from nbv.render.raycast import render_raycast
-    from nbv.setcover.settings import HullSettings
+    from nbv.setcover.settings import SetCoverSettings
 
     camera = Intrinsics.centred(160, 120, 119.0)
     mesh, _, _ = normalise(load_mesh(box))
     poses = viewspace_poses(original_viewspace())
     depth = render_raycast(mesh.vertices, mesh.faces, poses[[5]], camera)[0]
     points = backproject(depth, camera, poses[5])
-    bench = decide(method, 5, points, poses, camera, HullSettings())
+    bench = decide(method, 5, points, poses, camera, SetCoverSettings())
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(points))
     (tmp_path / "caps").mkdir()
     assert o3d.io.write_point_cloud(str(tmp_path / "caps" / "v.ply"), cloud)

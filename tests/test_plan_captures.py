@@ -16,7 +16,7 @@ from capturegen import CAMERA, EPS, START, capture_model, episode_views, plan_ca
 
 from nbv.geometry.camera import Intrinsics, opencv_to_blender
 from nbv.infogain.gain import view_gains
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.plan.config import PlanSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.method import MethodContext
@@ -27,7 +27,7 @@ from nbv.scan.method import policy_rng
 from nbv.scan.object_estimate import EstimateSettings, estimate_object
 from nbv.scan.settings import ObjectSettings, ViewspaceSettings
 from nbv.scan.shipped import with_shipped
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +67,7 @@ def test_next_view_from_captures_is_the_episode_of_the_dataset(model, tmp_path, 
     assert result.visited == views[:captured]
     assert result.chosen == [views[captured]]
     # The planner's predicted gain is that of its decision: the best unvisited view's on its map.
-    ctx = with_shipped(MethodContext({}, HullSettings(), CAMERA, EPS, 10, VolumetricSettings()))
+    ctx = with_shipped(MethodContext({}, SetCoverSettings(), CAMERA, EPS, 10, InfoGainSettings()))
     policy = METHODS["ig"].build(ctx, policy_rng(0, "ig"))
     state = EpisodeState(model.captured("original"), np.isin(np.arange(33), views[:captured]),
                          list(views[:captured]))  # fmt: skip

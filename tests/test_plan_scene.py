@@ -14,10 +14,10 @@ from scipy.spatial import ConvexHull
 from nbv.assets.synthetic.catalogue import make_model
 from nbv.geometry.camera import Intrinsics, backproject
 from nbv.infogain.occupancy import FREE, OCCUPIED, UNKNOWN
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.plan.config import PlanSettings
 from nbv.policies.episode import captured_state
-from nbv.policies.volumetric import InformationGainPolicy
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.render.scene import OBJECT, TABLE, WALL, SceneSettings, table_scene
 from nbv.scan.candidates import REASONS, CandidateSettings, limit_candidates
 from nbv.scan.captures import read_captures, write_captures
@@ -114,7 +114,7 @@ def _ig_map(folder, frame: ObjectFrame, camera=CAMERA):
     parts = [frame.points_to_normalised(c.points).astype(np.float32) for c in captures]
     state = captured_state(poses, parts, list(range(len(captures))),
                            misses=sensed_misses(captures, frame))  # fmt: skip
-    policy = InformationGainPolicy(VolumetricSettings(), camera)
+    policy = InfoGainPolicy(InfoGainSettings(), camera)
     policy.update(state)
     return policy.occupancy
 
@@ -172,7 +172,7 @@ def test_subsampled_points_make_no_misses_the_full_image_has_not(clean, tmp_path
     (misses,) = sensed_misses(captures, frame)
     from nbv.infogain.occupancy import OccupancyMap
 
-    grid = OccupancyMap(VolumetricSettings().occupancy())
+    grid = OccupancyMap(InfoGainSettings().occupancy())
     full = grid.sensed_voxels(points, pose, CAMERA, 16, misses)
     few = grid.sensed_voxels(points[::50], pose, CAMERA, 16, misses)
     old_few = grid.captured_voxels(points[::50], pose, CAMERA, 16)

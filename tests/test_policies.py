@@ -16,7 +16,6 @@ import nbv.dataset
 from nbv.assets.weights import SHIPPED_SCORER
 from nbv.geometry.viewspace import get_viewspace
 from nbv.infogain.gain_scorer import load_scorer
-from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.completion import (
     CompletionGainPolicy,
     CompletionHullPolicy,
@@ -24,20 +23,21 @@ from nbv.policies.completion import (
 )
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import DEFAULT_START_VIEWS, EpisodeState, reads_ground_truth, run_episode
-from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy, thicken
 from nbv.policies.hybrid import HullThenGainPolicy
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.method import MethodContext
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.reference import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.registry import METHODS
+from nbv.policies.setcover import SetCoverPolicy, SetCoverReplanPolicy, thicken
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.view_matching import MatchedNetworkPolicy
-from nbv.policies.volumetric import InformationGainPolicy
 from nbv.scan.shipped import ShippedCompletion
 from nbv.setcover.hull_sampling import convex_hull
 from nbv.setcover.oneshot import plan as sco_plan
 from nbv.setcover.oneshot import sph_hull_points
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 
 @pytest.fixture(scope="module")
@@ -67,7 +67,7 @@ def networks(tmp_path_factory):
 def all_policies(networks, seed: int = 0) -> dict:
     """One policy of every kind, seeded (the small camera of the dataset for the planners)."""
     rng = np.random.default_rng
-    hull = dict(intrinsics=SMALL_CAMERA, settings=HullSettings(n_samp=2048))
+    hull = dict(intrinsics=SMALL_CAMERA, settings=SetCoverSettings(n_samp=2048))
     return {
         "random": RandomPolicy(rng(seed)),
         "spread": SpreadPolicy(rng(seed)),
@@ -84,45 +84,43 @@ def all_policies(networks, seed: int = 0) -> dict:
             networks["signature"].fresh(), get_viewspace("original")
         ),
         "vcnbv": networks["directions"].fresh(),
-        "vcnbv_map": networks["directions_map"].fresh(
-            InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
-        ),
-        "hull_sco": HullSCOPolicy(rng(seed), **hull),
-        "hull_sco_sph": HullSCOPolicy(
+        "vcnbv_map": networks["directions_map"].fresh(InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA)),
+        "hull_sco": SetCoverPolicy(rng(seed), **hull),
+        "hull_sco_sph": SetCoverPolicy(
             rng(seed),
             sph=True,
             intrinsics=SMALL_CAMERA,
-            settings=HullSettings(n_samp=2048, lmax=2),
+            settings=SetCoverSettings(n_samp=2048, lmax=2),
         ),
-        "hull_sco_probes": HullSCOPolicy(rng(seed), probes=3, **hull),
-        "hull_sco_replan": HullSCOReplanPolicy(rng(seed), **hull),
+        "hull_sco_probes": SetCoverPolicy(rng(seed), probes=3, **hull),
+        "hull_sco_replan": SetCoverReplanPolicy(rng(seed), **hull),
         "vig_hull_sco": NetworkThenHullPolicy(
-            networks["signature"].fresh(), HullSCOPolicy(rng(seed), **hull)
+            networks["signature"].fresh(), SetCoverPolicy(rng(seed), **hull)
         ),
         "vig_hull_sco_matched": NetworkThenHullPolicy(
             MatchedNetworkPolicy(networks["signature"].fresh(), get_viewspace("original")),
-            HullSCOPolicy(rng(seed), **hull),
+            SetCoverPolicy(rng(seed), **hull),
         ),
         "vig_hull_sco_sph": NetworkThenHullPolicy(
             networks["signature"].fresh(),
-            HullSCOPolicy(
+            SetCoverPolicy(
                 rng(seed),
                 sph=True,
                 intrinsics=SMALL_CAMERA,
-                settings=HullSettings(n_samp=2048, lmax=2),
+                settings=SetCoverSettings(n_samp=2048, lmax=2),
             ),
         ),
-        "ig": InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA),
+        "ig": InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA),
         "hull_ig": HullThenGainPolicy(
-            HullSCOPolicy(rng(seed), **hull), InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+            SetCoverPolicy(rng(seed), **hull), InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA)
         ),
         "ig_learned": LearnedGainPolicy(
             VOLUMETRIC, SMALL_CAMERA, scorer=load_scorer(SHIPPED_SCORER)
         ),
-        "ig_area_factor": InformationGainPolicy(
+        "ig_area_factor": InfoGainPolicy(
             dataclasses.replace(VOLUMETRIC, metric="area_factor"), SMALL_CAMERA
         ),
-        "ig_proximity": InformationGainPolicy(
+        "ig_proximity": InfoGainPolicy(
             dataclasses.replace(VOLUMETRIC, metric="proximity_count"), SMALL_CAMERA
         ),
         "completion_hull_sco": CompletionHullPolicy(rng(seed), complete=_completer(), **hull),
@@ -255,9 +253,11 @@ def test_one_shot_planner_is_the_plan_of_the_start_view(model):
     for dilate in (False, True):
         # eps about the small camera's pixel spacing: the dilation changes this plan.
         kw = dict(
-            settings=HullSettings(n_samp=4096, dilate=dilate), intrinsics=SMALL_CAMERA, eps=0.02
+            settings=SetCoverSettings(n_samp=4096, dilate=dilate), intrinsics=SMALL_CAMERA, eps=0.02
         )
-        episode = run_episode(model, "original", 10, HullSCOPolicy(np.random.default_rng(11), **kw))
+        episode = run_episode(
+            model, "original", 10, SetCoverPolicy(np.random.default_rng(11), **kw)
+        )
         rng = np.random.default_rng(11)
         expected = sco_plan(
             view.view_points(10), view.poses[:, :3, 3], 9, [10], rng=rng, poses=view.poses, **kw
@@ -269,8 +269,8 @@ def test_one_shot_planner_is_the_plan_of_the_start_view(model):
 
 def test_sph_planner_plans_on_the_signature(model):
     view = model.views["permuted"]
-    lmax2 = HullSettings(lmax=2)
-    policy = HullSCOPolicy(
+    lmax2 = SetCoverSettings(lmax=2)
+    policy = SetCoverPolicy(
         np.random.default_rng(2), sph=True, settings=lmax2, intrinsics=SMALL_CAMERA
     )
     episode = run_episode(model, "permuted", 1, policy)
@@ -288,10 +288,10 @@ def test_sph_planner_plans_on_the_signature(model):
 
 def test_probes_come_first_and_only_their_probe_points_are_used(model):
     view = model.views["original"]
-    policy = HullSCOPolicy(
+    policy = SetCoverPolicy(
         np.random.default_rng(3),
         probes=3,
-        settings=HullSettings(probe_points=20),
+        settings=SetCoverSettings(probe_points=20),
         intrinsics=SMALL_CAMERA,
     )
     episode = run_episode(model, "original", 15, policy)
@@ -321,7 +321,7 @@ def test_replanning_takes_the_first_view_of_a_plan_on_everything_seen(model):
         model,
         "original",
         24,
-        HullSCOReplanPolicy(np.random.default_rng(8), intrinsics=SMALL_CAMERA),
+        SetCoverReplanPolicy(np.random.default_rng(8), intrinsics=SMALL_CAMERA),
     )
     rng = np.random.default_rng(8)
     for i in range(1, 10):
@@ -419,7 +419,7 @@ def test_flat_and_empty_clouds_are_planned_with_a_note(model, networks):
     rng = np.random.default_rng(0)
     flat = np.c_[rng.random(200) - 0.5, np.zeros(200), rng.random(200) - 0.5]
     for sph in (False, True):
-        planner = HullSCOPolicy(rng, sph=sph, intrinsics=SMALL_CAMERA)
+        planner = SetCoverPolicy(rng, sph=sph, intrinsics=SMALL_CAMERA)
         views = planner.plan_from(flat if not sph else flat[:0], poses, [3], 9)
         assert len(set(views)) == 9 and 3 not in views
         assert planner.notes
@@ -435,9 +435,9 @@ def test_state_cloud_is_what_the_captured_views_saw(model):
 
 
 def test_information_gain_is_deterministic_and_maps_each_view_once(model):
-    first = InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+    first = InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA)
     a = run_episode(model, "original", 3, first)
-    b = run_episode(model, "original", 3, InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA))
+    b = run_episode(model, "original", 3, InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA))
     assert a.views == b.views
     # The last pick is made on the map of the 9 views before it; each went in once.
     assert first.integrated == a.views[:-1]
@@ -445,31 +445,29 @@ def test_information_gain_is_deterministic_and_maps_each_view_once(model):
     # Episodes sharing a run's traced views build the same map as a fresh trace of each view.
     shared: dict = {}
     for start in (3, 10):
-        run_episode(model, "original", start, InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA,
+        run_episode(model, "original", start, InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA,
                                                                     traced=shared))  # fmt: skip
     kept = len(shared["views"])
-    again = InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA, traced=shared)
+    again = InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA, traced=shared)
     assert run_episode(model, "original", 3, again).views == a.views
     assert len(shared["views"]) == kept  # all from the cache
     np.testing.assert_array_equal(again.occupancy.log_odds, first.occupancy.log_odds)
     # A disturbed cloud is another view: traced afresh.
     noisy = copy.deepcopy(model)
     noisy.views["original"].points += np.float32(0.01)
-    run_episode(
-        noisy, "original", 3, InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA, traced=shared)
-    )
+    run_episode(noisy, "original", 3, InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA, traced=shared))
     assert len(shared["views"]) > kept
 
 
 def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):
-    hull = dict(intrinsics=SMALL_CAMERA, settings=HullSettings(n_samp=2048))
-    one_shot = HullSCOPolicy(np.random.default_rng(7), **hull)
+    hull = dict(intrinsics=SMALL_CAMERA, settings=SetCoverSettings(n_samp=2048))
+    one_shot = SetCoverPolicy(np.random.default_rng(7), **hull)
     plan = run_episode(model, "original", 10, one_shot).views[1:]
     covering = [v for v, g in zip(plan, one_shot.last_gains, strict=True) if g > 0]
     assert 0 < len(covering) < len(plan)  # the hull is covered before the episode ends
     hybrid = HullThenGainPolicy(
-        HullSCOPolicy(np.random.default_rng(7), **hull),
-        InformationGainPolicy(VOLUMETRIC, SMALL_CAMERA),
+        SetCoverPolicy(np.random.default_rng(7), **hull),
+        InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA),
     )
     episode = run_episode(model, "original", 10, hybrid)
     assert episode.views[1 : 1 + len(covering)] == covering
@@ -480,10 +478,10 @@ def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):
 @pytest.mark.parametrize("sph", [False, True])
 def test_two_stage_takes_the_networks_picks_then_the_plan_of_the_whole_cloud(model, networks, sph):
     view = model.views["original"]
-    hull = dict(intrinsics=SMALL_CAMERA, settings=HullSettings(n_samp=2048, lmax=2), sph=sph)
+    hull = dict(intrinsics=SMALL_CAMERA, settings=SetCoverSettings(n_samp=2048, lmax=2), sph=sph)
     k = 3
     policy = NetworkThenHullPolicy(
-        networks["signature"].fresh(), HullSCOPolicy(np.random.default_rng(7), **hull), k
+        networks["signature"].fresh(), SetCoverPolicy(np.random.default_rng(7), **hull), k
     )
     episode = run_episode(model, "original", 27, policy)
     # (a) The first k picks are the network's, as it picks alone from the same start.
@@ -491,7 +489,7 @@ def test_two_stage_takes_the_networks_picks_then_the_plan_of_the_whole_cloud(mod
     assert episode.views[: k + 1] == alone.views[: k + 1]
     # (b) The rest is one plan on the hull of all k + 1 captured views' points, visited excluded.
     seen = episode.views[: k + 1]
-    planner = HullSCOPolicy(np.random.default_rng(7), **hull)
+    planner = SetCoverPolicy(np.random.default_rng(7), **hull)
     cloud = np.concatenate([view.view_points(v) for v in seen])
     assert episode.views[k + 1 :] == planner.plan_from(cloud, view.poses, seen, 10 - (k + 1))
     assert len(episode.times) == k + 1  # k network decisions, then one plan
@@ -500,9 +498,9 @@ def test_two_stage_takes_the_networks_picks_then_the_plan_of_the_whole_cloud(mod
     assert policy.counts == planner.counts and policy.last_gains == planner.last_gains
     # No network view: the one-shot planner on the start view's cloud, pick for pick.
     none = NetworkThenHullPolicy(
-        networks["signature"].fresh(), HullSCOPolicy(np.random.default_rng(7), **hull), 0
+        networks["signature"].fresh(), SetCoverPolicy(np.random.default_rng(7), **hull), 0
     )
-    one_shot = HullSCOPolicy(np.random.default_rng(7), **hull)
+    one_shot = SetCoverPolicy(np.random.default_rng(7), **hull)
     assert (
         run_episode(model, "original", 27, none).views
         == run_episode(model, "original", 27, one_shot).views
@@ -516,7 +514,7 @@ def test_oracle_vig_picks_the_view_of_the_largest_true_vig_gain(model):
 
     view = model.views["permuted"]
     hulls = view.view_hulls()
-    ctx = MethodContext({}, HullSettings(), SMALL_CAMERA, 0.02, 10)
+    ctx = MethodContext({}, SetCoverSettings(), SMALL_CAMERA, 0.02, 10)
     oracle = METHODS["oracle_vig"].build(ctx, np.random.default_rng(0))
     episode = run_episode(model, "permuted", 3, oracle)
     for i in range(1, 10):

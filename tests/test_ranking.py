@@ -18,8 +18,8 @@ from tiny_nets import save_tiny_checkpoint
 import nbv.dataset
 from nbv.eval.config import EvalSettings
 from nbv.eval.ranking import RANKED, oracle_states, ranking, reliability_summary, summary
-from nbv.policies.baselines import OraclePolicy
 from nbv.policies.method import MethodContext
+from nbv.policies.reference import OraclePolicy
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
 from nbv.utils.ranking import spearman, spearman_per_sample, split_half_reliability
 
@@ -95,7 +95,7 @@ def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
 
     networks, skipped = load_networks(settings, 33)
     assert not skipped
-    ctx = MethodContext(networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]), 10)
+    ctx = MethodContext(networks, settings.setcover, ds.intrinsics, float(ds.attrs["eps"]), 10)
     scoring = METHODS[name].build(ctx, np.random.default_rng(5))
     picking = METHODS[name].build(ctx, np.random.default_rng(5))
     for state in oracle_states(model, "original", 1, 10):

@@ -1,5 +1,5 @@
-"""The reconstruction and path metrics (nbv.geometry.reconstruction) on cases with known answers,
-and against independent brute-force implementations."""
+"""The reconstruction and path metrics (nbv.geometry.reconstruction_metrics) on cases with known
+answers, and against independent brute-force implementations."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import itertools
 import numpy as np
 import pytest
 
-from nbv.geometry.reconstruction import (
+from nbv.geometry.reconstruction_metrics import (
     MAX_TOUR_VIEWS,
     ViewDistances,
     cloud_scores,

@@ -11,13 +11,13 @@ from datagen import SMALL_CAMERA
 from nbv.assets.weights import SHIPPED_SCORER
 from nbv.infogain.gain_scorer import GainScorer, load_scorer
 from nbv.infogain.view_features import FEATURES
-from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.conditioned_network import ConditionedPolicy
-from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.method import CHECKS, Method, MethodContext
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.reference import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.registry import (
     BASELINES,
     DEFAULT_METHODS,
@@ -29,13 +29,13 @@ from nbv.policies.registry import (
     method,
     networks_of,
 )
+from nbv.policies.setcover import SetCoverPolicy, SetCoverReplanPolicy
 from nbv.policies.two_stage import NetworkThenHullPolicy
-from nbv.policies.volumetric import InformationGainPolicy
 from nbv.scan.shipped import resolve_weights, with_shipped
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 
-def _context(hull: HullSettings | None = None) -> MethodContext:
+def _context(hull: SetCoverSettings | None = None) -> MethodContext:
     # Stand-ins for the networks' models: building a policy reads no weights (a PCNBV's number
     # of outputs only, which its views matched by direction check).
     pcnbv_model = SimpleNamespace(config=SimpleNamespace(n_views=33))
@@ -45,11 +45,11 @@ def _context(hull: HullSettings | None = None) -> MethodContext:
         else NetworkPolicy(model=pcnbv_model, input=kind)
         for name, kind in NETWORK_INPUTS.items()
     }
-    return with_shipped(MethodContext(networks, hull or HullSettings(), SMALL_CAMERA, 0.02, 7))
+    return with_shipped(MethodContext(networks, hull or SetCoverSettings(), SMALL_CAMERA, 0.02, 7))
 
 
 def test_every_method_builds_a_fresh_policy_of_its_kind():
-    ctx = _context(HullSettings(n_samp=123, probes=2, lmax=1))
+    ctx = _context(SetCoverSettings(n_samp=123, probes=2, lmax=1))
     kinds = {}
     for name, m in METHODS.items():
         assert m.name == name
@@ -71,15 +71,15 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
         policy = METHODS[name].build(ctx, np.random.default_rng(0))
         assert policy.model is ctx.networks[name].model and policy is not ctx.networks[name]
     # The two-stage planners: pcnbv_sph_vig's network, then the one-shot planner on the run's
-    # hull settings (the signature's hull for the sph one), after hull.network_views picks.
+    # hull settings (the signature's hull for the sph one), after setcover.network_views picks.
     for name, sph in (("vig_hull_sco", False), ("vig_hull_sco_sph", True)):
         policy = METHODS[name].build(ctx, np.random.default_rng(0))
         assert kinds[name] is NetworkThenHullPolicy and policy.network_views == 2
         assert policy.network.model is ctx.networks["pcnbv_sph_vig"].model
-        assert type(policy.hull) is HullSCOPolicy and policy.hull.sph is sph
-        assert policy.hull.settings is ctx.hull and policy.hull.probes == 0
+        assert type(policy.hull) is SetCoverPolicy and policy.hull.sph is sph
+        assert policy.hull.settings is ctx.setcover and policy.hull.probes == 0
         assert policy.hull.n_views == 7 and policy.hull.eps == 0.02
-    three = dataclasses.replace(ctx, hull=HullSettings(network_views=3))
+    three = dataclasses.replace(ctx, setcover=SetCoverSettings(network_views=3))
     assert METHODS["vig_hull_sco"].build(three, np.random.default_rng(0)).network_views == 3
     # Without its network loaded, a method that runs one says which.
     bare = dataclasses.replace(ctx, networks={})
@@ -87,12 +87,12 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
         with pytest.raises(ValueError, match="give checkpoints.pcnbv"):
             METHODS[name].build(bare, np.random.default_rng(0))
     assert kinds["vcnbv"] is ConditionedPolicy
-    assert kinds["hull_sco_replan"] is HullSCOReplanPolicy
+    assert kinds["hull_sco_replan"] is SetCoverReplanPolicy
     for name in ("hull_sco", "hull_sco_sph", "hull_sco_probes"):
-        assert kinds[name] is HullSCOPolicy
+        assert kinds[name] is SetCoverPolicy
     # The planners share the context's settings; only the probing one takes probe views and
     # only the signature one plans on the signature.
-    assert kinds["ig"] is InformationGainPolicy and kinds["hull_ig"] is HullThenGainPolicy
+    assert kinds["ig"] is InfoGainPolicy and kinds["hull_ig"] is HullThenGainPolicy
     assert kinds["ig_learned"] is LearnedGainPolicy
     # The commands give the shipped scorer (with_shipped); a context with none is refused.
     shipped = METHODS["ig_learned"].build(ctx, np.random.default_rng(0)).scorer
@@ -104,13 +104,13 @@ def test_every_method_builds_a_fresh_policy_of_its_kind():
     given = dataclasses.replace(ctx, scorer=own)
     assert METHODS["ig_learned"].build(given, np.random.default_rng(0)).scorer is own
     ig = METHODS["ig"].build(ctx, np.random.default_rng(0))
-    assert ig.settings == ctx.volumetric and ig.intrinsics == SMALL_CAMERA
+    assert ig.settings == ctx.infogain and ig.intrinsics == SMALL_CAMERA
     # The field's volumetric baselines: ig with the run's settings but their own metric, on
     # the run's shared candidate voxels.
     for name, metric in (("ig_area_factor", "area_factor"), ("ig_proximity", "proximity_count")):
         policy = METHODS[name].build(ctx, np.random.default_rng(0))
-        assert kinds[name] is InformationGainPolicy and policy.traced is ctx.traced
-        assert policy.settings == dataclasses.replace(ctx.volumetric, metric=metric)
+        assert kinds[name] is InfoGainPolicy and policy.traced is ctx.traced
+        assert policy.settings == dataclasses.replace(ctx.infogain, metric=metric)
         assert policy.intrinsics == SMALL_CAMERA
     # Spread breaks its ties with the episode's generator (the same draws for the same seed).
     spread = METHODS["spread"].build(ctx, np.random.default_rng(4))

@@ -14,11 +14,11 @@ from nbv.geometry.camera import Intrinsics, viewspace_poses
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.sph import equiangular_directions, signature_with_centroid, unit_vectors
 from nbv.geometry.viewspace import original_viewspace, spread_views
-from nbv.policies.hull_sco import HullSCOPolicy
+from nbv.policies.setcover import SetCoverPolicy
 from nbv.setcover.greedy import greedy_max_coverage, pack_sets
 from nbv.setcover.hull_sampling import cameras_inside, convex_hull, sample_hull, sample_on_hull
 from nbv.setcover.oneshot import plan, sph_hull_points
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.setcover.view_sets import view_sets
 from nbv.utils.bits import popcount_rows
 
@@ -385,7 +385,7 @@ def test_plan_on_a_cube_is_greedy_and_deterministic():
     rng = np.random.default_rng(6)
     points = _cube_surface(3000, 0.25, rng)
     viewspace = original_viewspace()
-    result = plan(points, viewspace, exclude=(0,), rng=11, settings=HullSettings(n_samp=8192))
+    result = plan(points, viewspace, exclude=(0,), rng=11, settings=SetCoverSettings(n_samp=8192))
     assert len(result.views) == 9 and len(set(result.views)) == 9 and 0 not in result.views
     assert result.gains[0] > 0
     assert result.gains == sorted(result.gains, reverse=True)
@@ -423,7 +423,7 @@ def test_plan_on_a_cube_is_greedy_and_deterministic():
     )
     by_index = np.flatnonzero(~np.isin(np.arange(len(viewspace)), [0, *result.views[:zero]]))
     assert result.views[zero:] != by_index[: 9 - zero].tolist()
-    again = plan(points, viewspace, exclude=(0,), rng=11, settings=HullSettings(n_samp=8192))
+    again = plan(points, viewspace, exclude=(0,), rng=11, settings=SetCoverSettings(n_samp=8192))
     assert (again.views, again.gains) == (result.views, result.gains)
 
 
@@ -442,7 +442,7 @@ def test_plan_dilates_the_sets_only_when_asked():
     assert np.all(dilated >= visible) and (dilated & ~visible).sum() > 100
     for n_iter in (1, 2, 9):
         kw = dict(n_iter=n_iter, exclude=(0,), rng=11, poses=poses)
-        n8192 = HullSettings(n_samp=8192)
+        n8192 = SetCoverSettings(n_samp=8192)
         plain = plan(points, viewspace, settings=n8192, **kw)
         explicit = plan(points, viewspace, settings=replace(n8192, dilate=False), **kw)
         assert (explicit.views, explicit.gains) == (plain.views, plain.gains)
@@ -458,7 +458,7 @@ def test_plan_dilates_the_sets_only_when_asked():
             assert wide.covered_fraction == plain.covered_fraction == 1.0
     sph = plan(
         sph_hull_points(points, 3), viewspace, exclude=(0,), rng=0,
-        settings=HullSettings(n_samp=4096, dilate=True),
+        settings=SetCoverSettings(n_samp=4096, dilate=True),
     )  # fmt: skip
     assert len(set(sph.views)) == 9 and 0 not in sph.views
 
@@ -467,14 +467,14 @@ def test_plan_accepts_precomputed_poses_and_rejects_bad_input():
     points = _cube_surface(500, 0.25, np.random.default_rng(7))
     viewspace = original_viewspace()
     poses = viewspace_poses(viewspace)
-    n2048 = HullSettings(n_samp=2048)
+    n2048 = SetCoverSettings(n_samp=2048)
     a = plan(points, viewspace, n_iter=3, rng=0, settings=n2048)
     b = plan(points, viewspace, n_iter=3, rng=0, settings=n2048, poses=poses)
     assert (a.views, a.gains) == (b.views, b.gains)
     with pytest.raises(ValueError, match="no volume"):
         plan(points * [1.0, 0.0, 1.0], viewspace)
     with pytest.raises(ValueError, match="simulation"):
-        plan(points, viewspace, settings=HullSettings(simulation="blender"))
+        plan(points, viewspace, settings=SetCoverSettings(simulation="blender"))
     with pytest.raises(ValueError, match="viewspace"):
         plan(points, viewspace[:, :2])
     with pytest.raises(ValueError, match="poses"):
@@ -489,7 +489,7 @@ def test_plan_raycast_runs_on_a_small_camera():
         points,
         original_viewspace(),
         exclude=(0,),
-        settings=HullSettings(n_samp=2048, simulation="raycast"),
+        settings=SetCoverSettings(n_samp=2048, simulation="raycast"),
         intrinsics=small,
         eps=0.03,
     )
@@ -508,7 +508,7 @@ def test_the_signature_hull_sits_at_the_centroid_and_plans():
     ratio = ConvexHull(signature).volume / ConvexHull(points).volume
     assert 0.8 < ratio < 1.0
     result = plan(
-        signature, original_viewspace(), exclude=(0,), rng=0, settings=HullSettings(n_samp=4096)
+        signature, original_viewspace(), exclude=(0,), rng=0, settings=SetCoverSettings(n_samp=4096)
     )
     assert len(set(result.views)) == 9 and 0 not in result.views
     assert result.gains == sorted(result.gains, reverse=True) and result.gains[0] > 0
@@ -574,7 +574,7 @@ def test_cameras_inside_a_hull_are_found_and_noted():
     assert cameras_inside(big, viewspace).all() and not cameras_inside(small, viewspace).any()
     offset = convex_hull(cube_corners(0.3) + viewspace[0])  # around camera 0 only
     np.testing.assert_array_equal(np.flatnonzero(cameras_inside(offset, viewspace)), [0])
-    policy = HullSCOPolicy(np.random.default_rng(0), HullSettings(n_samp=500))
+    policy = SetCoverPolicy(np.random.default_rng(0), SetCoverSettings(n_samp=500))
     policy.plan_from(cube_corners(0.3) + viewspace[0], viewspace_poses(viewspace), [5], 3)
     assert policy.notes == [
         "1 cameras inside the planning hull (views [0]): the analytic visibility assumes cameras "

@@ -22,7 +22,12 @@ from nbv.dataset.samples import SampleSet, SampleSettings, load_samples, model_s
 from nbv.models.checkpoints import CheckpointError, load_checkpoint
 from nbv.models.precision import resolve_precision
 from nbv.policies.network import NetworkPolicy
-from train.baselines import (
+from train.config import ModelSettings, ScoreSettings, TrainConfigError, TrainSettings
+from train.fitcheck import first_models, fit_check
+from train.folds import split_samples
+from train.loop import run
+from train.metrics import best_view_hits, spearman, spearman_by_stage
+from train.ranking_baselines import (
     baseline_spearman,
     fit_ridge,
     fit_view_ridge,
@@ -31,11 +36,6 @@ from train.baselines import (
     ridge_features,
     ridge_scores,
 )
-from train.config import ModelSettings, ScoreSettings, TrainConfigError, TrainSettings
-from train.fitcheck import first_models, fit_check
-from train.folds import split_samples
-from train.loop import run
-from train.metrics import best_view_hits, spearman, spearman_by_stage
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -74,7 +74,7 @@ def read_csv(path: Path) -> list[dict]:
 
 def test_spearman_by_model_ranks_each_models_samples_alone(tmp_path):
     from train.metrics import spearman_by_model
-    from train.records import append_csv_rows
+    from train.run_log import append_csv_rows
 
     state = np.zeros((3, 4), bool)
     target = np.array([[1.0, 2, 3, 4], [1, 2, 3, 4], [4, 3, 2, 1]])

@@ -10,8 +10,8 @@ The other modules:
 
 * :mod:`~train.augment`: Exact symmetry augmentation of training batches
   (:mod:`nbv.geometry.symmetry`).
-* :mod:`~train.baselines`: What a network's ranking has to beat: two baselines scored on the same
-  validation samples.
+* :mod:`~train.ranking_baselines`: What a network's ranking has to beat: two baselines scored on
+  the same validation samples.
 * :mod:`~train.completion`: Training of the completion network (:mod:`nbv.models.completion`).
 * :mod:`~train.completion_data`: The completion network's data: partial views and true surfaces of
   the training categories.
@@ -31,7 +31,7 @@ The other modules:
 * :mod:`~train.losses`: Training losses of the per-view gain networks.
 * :mod:`~train.metrics`: Training metrics: rank correlation and best-view agreement of predicted and
   true gains, overall and by trajectory stage.
-* :mod:`~train.records`: What every trainer records beside its weights: the epochs' rows of its CSV
+* :mod:`~train.run_log`: What every trainer records beside its weights: the epochs' rows of its CSV
   files, and the identity of the dataset it read.
 * :mod:`~train.resume`: Resuming a run only with the settings, dataset and samples it started with.
 * :mod:`~train.subsets`: The training models a trainer uses when told to use fewer (``max_models``):

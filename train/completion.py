@@ -49,7 +49,7 @@ from nbv.utils.atomic import atomic_path, write_text
 from nbv.utils.fields import at_least, between, one_of, positive
 from nbv.utils.seeding import named_rng
 from train import completion_data as cdata
-from train.records import append_csv_rows
+from train.run_log import append_csv_rows
 
 log = logging.getLogger("train.completion")
 PROG = "train.completion"

@@ -49,7 +49,7 @@ from nbv.geometry.scores import coverage_gains
 from nbv.geometry.viewspace import unit_directions
 from nbv.infogain.gain import candidate_voxels
 from nbv.infogain.occupancy import OccupancyMap, OccupancySettings
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.infogain.view_features import FEATURES, unvisited_features
 from nbv.models.networks import fresh_network
 from nbv.models.view_conditioned import (
@@ -58,12 +58,12 @@ from nbv.models.view_conditioned import (
 )
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import auc, run_episode
-from nbv.policies.volumetric import InformationGainPolicy
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.utils.selection import masked_argmax
 from train.conditioned_config import ENTRY, VIEWSPACES, ConditionedSettings
 from train.losses import batch_loss
 from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
-from train.records import append_csv_rows
+from train.run_log import append_csv_rows
 from train.subsets import subset
 
 log = logging.getLogger("train.conditioned")
@@ -87,7 +87,7 @@ class _Pool:
 
 
 def _pool(
-    model: ModelData, intrinsics: Intrinsics, volumetric: VolumetricSettings | None = None
+    model: ModelData, intrinsics: Intrinsics, volumetric: InfoGainSettings | None = None
 ) -> _Pool:
     """The pool of ``model``; with the map's ``volumetric`` settings, its map data too."""
     views = [model.views[name] for name in VIEWSPACES]
@@ -189,7 +189,7 @@ def _predict(model, samples: dict, batch_size: int) -> np.ndarray:
 
 
 def _validation_auc(
-    model, dataset, keys: list[str], settings: ConditionedSettings, volumetric: VolumetricSettings
+    model, dataset, keys: list[str], settings: ConditionedSettings, volumetric: InfoGainSettings
 ) -> dict:
     """Mean validation AUC per viewspace; a network of map features plays on ``volumetric``'s
     map."""
@@ -200,7 +200,7 @@ def _validation_auc(
         curves = [
             run_episode(
                 dataset.model(key, (name,)), name, int(start),
-                policy.fresh(InformationGainPolicy(volumetric, dataset.intrinsics, traced=traced)),
+                policy.fresh(InfoGainPolicy(volumetric, dataset.intrinsics, traced=traced)),
             ).coverage
             for key in keys
             for start in settings.start_views
@@ -259,7 +259,7 @@ def run(settings: ConditionedSettings) -> dict:
     held = ", ".join(settings.select_categories)
     log.info("%d training, %d validation models%s", len(train_keys), len(valid_keys),
              f" (of {held})" if held else "")  # fmt: skip
-    volumetric = VolumetricSettings()  # ig's defaults: the map of the map features
+    volumetric = InfoGainSettings()  # ig's defaults: the map of the map features
     pooled = volumetric if settings.map_features else None
     t0 = time.perf_counter()
     pools = [_pool(dataset.model(k, VIEWSPACES), dataset.intrinsics, pooled)

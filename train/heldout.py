@@ -21,7 +21,7 @@ from nbv.policies.episode import EPISODE_VIEWS, run_episode
 from nbv.policies.method import MethodContext
 from nbv.policies.network import NetworkPolicy
 from nbv.policies.registry import BASELINES, METHODS
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.utils.atomic import write_text
 from nbv.utils.seeding import named_rng
 from train.config import TrainSettings
@@ -64,7 +64,7 @@ def score_heldout(
         out["coverage"][method].append(np.mean([e.coverage for e in episodes], axis=0).tolist())
 
     # The baselines read none of the context but the camera: no network, no planner.
-    context = MethodContext({}, HullSettings(), dataset.intrinsics,
+    context = MethodContext({}, SetCoverSettings(), dataset.intrinsics,
                             float(dataset.attrs["eps"]), EPISODE_VIEWS)  # fmt: skip
     bar = tqdm(total=len(keys) * len(start_views), desc="held-out episodes", disable=not progress)
     for key in keys:

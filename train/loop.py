@@ -8,12 +8,12 @@ sample mapped by a random symmetry of its viewspace (``augment``, :mod:`train.au
 later: :func:`train.metrics.spearman_by_stage`) and best-view hits on a fixed 300 of the
 training samples (unaugmented), and the validation loss, Spearman correlations and best-view hits
 on the samples of the *valid* split of the fold's training categories, beside the same Spearman
-correlations of two baselines there, computed once at the start (:mod:`train.baselines`: a ridge
-regression fitted on the training samples, and the spread rule's angle), and every
-``eval_every`` epochs (and at the last) the reconstruction metric there: coverage by view and AUC
-of the network's episodes from ``start_views`` on those models. The held-out category takes no
-part in training or in choosing the checkpoint: it is scored once, at the end, with the chosen
-one (:mod:`train.heldout`).
+correlations of two baselines there, computed once at the start
+(:mod:`train.ranking_baselines`: a ridge regression fitted on the training samples, and the
+spread rule's angle), and every ``eval_every`` epochs (and at the last) the reconstruction
+metric there: coverage by view and AUC of the network's episodes from ``start_views`` on those
+models. The held-out category takes no part in training or in choosing the checkpoint: it is
+scored once, at the end, with the chosen one (:mod:`train.heldout`).
 
 ``out_dir`` gets ``last.pt`` (every epoch, with the optimizer state and the run's identity, for
 resuming: :mod:`train.resume`), ``best.pt`` (``select=valid``: the best validation AUC;
@@ -45,13 +45,12 @@ from nbv.policies.episode import auc, run_episode
 from nbv.policies.network import NetworkPolicy
 from nbv.utils.atomic import write_text
 from train.augment import Augmentation
-from train.baselines import write_baselines
 from train.config import TrainSettings, stored_settings
 from train.folds import fold_keys, split_samples
 from train.heldout import heldout_result
 from train.losses import batch_loss, weight_penalty
 from train.metrics import SPEARMAN_FILE, ranking_metrics, spearman_by_model
-from train.records import append_csv_rows, dataset_identity
+from train.ranking_baselines import write_baselines
 from train.resume import (
     checkpoint_extra,
     clear_run,
@@ -60,6 +59,7 @@ from train.resume import (
     samples_identity,
     save_last,
 )
+from train.run_log import append_csv_rows, dataset_identity
 
 log = logging.getLogger(__name__)
 
@@ -298,6 +298,23 @@ def _ranking_row(model, val, probe, baselines: dict, settings: TrainSettings, de
     return row
 
 
+def _open_run(settings: TrainSettings, identity: dict, model, optimizer, scheduler) -> tuple:
+    """The run folder ready: made, cleared with ``resume=false``, the training state resumed
+    from its ``last.pt`` and ``settings.json`` written; (first epoch to train, best AUC)."""
+    out_dir = settings.out_dir
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if not settings.resume:
+        deleted = clear_run(out_dir)
+        if deleted:
+            log.info("resume=false: deleted %s of %s", ", ".join(deleted), out_dir)
+    first_epoch, best_auc = resume_state(out_dir, identity, model, optimizer, scheduler)
+    if first_epoch:
+        log.info("resuming %s at epoch %d", out_dir, first_epoch + 1)
+    plain = {**stored_settings(settings), "held_out": settings.held_out}
+    write_text(out_dir / "settings.json", json.dumps(plain, indent=1))
+    return first_epoch, best_auc
+
+
 def _train(settings: TrainSettings) -> dict:
     if settings.threads:
         torch.set_num_threads(settings.threads)
@@ -320,16 +337,7 @@ def _train(settings: TrainSettings) -> dict:
 
     model, optimizer, scheduler = fresh_training(settings, n_views, device)
     out_dir = settings.out_dir
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if not settings.resume:
-        deleted = clear_run(out_dir)
-        if deleted:
-            log.info("resume=false: deleted %s of %s", ", ".join(deleted), out_dir)
-    first_epoch, best_auc = resume_state(out_dir, identity, model, optimizer, scheduler)
-    if first_epoch:
-        log.info("resuming %s at epoch %d", out_dir, first_epoch + 1)
-    plain = {**stored_settings(settings), "held_out": settings.held_out}
-    write_text(out_dir / "settings.json", json.dumps(plain, indent=1))
+    first_epoch, best_auc = _open_run(settings, identity, model, optimizer, scheduler)
 
     from torch.utils.tensorboard import SummaryWriter
 

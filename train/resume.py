@@ -47,7 +47,7 @@ def run_identity(settings: TrainSettings, dataset_id: str, samples_id: str) -> d
 
     Args:
         settings: the run's settings.
-        dataset_id: :func:`train.records.dataset_identity` of the dataset folder.
+        dataset_id: :func:`train.run_log.dataset_identity` of the dataset folder.
         samples_id: :func:`file_digest` of the samples files of the run's score.
     """
     out = {k: v for k, v in stored_settings(settings).items() if k not in RESUMABLE}

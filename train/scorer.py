@@ -47,14 +47,14 @@ from nbv.config.schema import ConfigError, PathsConfig
 from nbv.config.settings import Entry, check_ranges, setting
 from nbv.dataset.records import ViewData, offsets_of, score_functions
 from nbv.infogain.gain_scorer import GainScorer, save_scorer
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.infogain.view_features import FEATURES, view_features
 from nbv.policies.episode import EpisodeState
-from nbv.policies.volumetric import InformationGainPolicy
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.utils.fields import at_least, between, positive
 from train.losses import per_sample_loss
 from train.metrics import SPEARMAN_FILE, spearman, spearman_by_model
-from train.records import append_csv_rows, dataset_identity
+from train.run_log import append_csv_rows, dataset_identity
 from train.subsets import subset
 
 log = logging.getLogger("train.scorer")
@@ -167,7 +167,7 @@ def model_decisions(
         positions = view.poses[:, :3, 3]
         n = len(positions)
         for start in rng.choice(n, min(settings.starts, n), replace=False):
-            policy = InformationGainPolicy(VolumetricSettings(), dataset.intrinsics, traced=traced)
+            policy = InfoGainPolicy(InfoGainSettings(), dataset.intrinsics, traced=traced)
             order, state = [int(start)], np.zeros(n, bool)
             state[start] = True
             while len(order) < min(settings.n_views, n):

@@ -17,7 +17,7 @@ The other modules:
   50k-point capture.
 * :mod:`~nbv.bench.training`: Time a training step of PCNBV and PCNBV-sph beside its FLOP floor
   (rows of ``make bench``).
-* :mod:`~nbv.bench.volumetric`: Plain numpy references of the volumetric planners, and their
+* :mod:`~nbv.bench.infogain`: Plain numpy references of the volumetric planners, and their
   benchmark rows.
 * :mod:`~nbv.bench.warm`: Benchmark rows of the warm planner (:class:`nbv.scan.planner.Planner`) in
   a robot's loop.

@@ -27,7 +27,7 @@ from nbv.policies.registry import (
     METHODS,
 )
 from nbv.scan.shipped import ShippedCompletion
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.utils.seeding import named_rng
 
 #: The decision target of issue 53, seconds on one core.
@@ -46,7 +46,7 @@ def decision_rows(
     state = captured_state(poses, parts, list(CAPTURED))
     completion = ShippedCompletion()
     completion.completer()  # loaded once, as an evaluation loads it
-    ctx = MethodContext({}, HullSettings(), intrinsics, DEFAULT_EPS, EPISODE_VIEWS,
+    ctx = MethodContext({}, SetCoverSettings(), intrinsics, DEFAULT_EPS, EPISODE_VIEWS,
                         completion=completion)  # fmt: skip
 
     def decide(name: str):

@@ -6,22 +6,22 @@ kept (``points_per_view=0``), as ``python -m nbv.plan captures=...`` does after 
 the files: the state built, a fresh policy called (for ``ig`` the candidates' rays traced too, as
 in a run's first decision). The references: for ``hull_sco``
 the same plan with the ray-cast view simulation (the planner's exact slow path), for ``ig`` the
-same decision in plain numpy (:func:`nbv.bench.volumetric.plain_decision`).
+same decision in plain numpy (:func:`nbv.bench.infogain.plain_decision`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from nbv.bench.infogain import plain_decision
 from nbv.bench.timing import best_time
-from nbv.bench.volumetric import plain_decision
 from nbv.geometry.scores import DEFAULT_EPS
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.policies.episode import EPISODE_VIEWS, captured_state
 from nbv.policies.method import MethodContext
 from nbv.policies.registry import HULL_SCO, IG, METHODS
 from nbv.scan.shipped import with_shipped
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.utils.seeding import named_rng
 
 #: Points of the benchmark's capture.
@@ -40,14 +40,14 @@ def capture(views: list[np.ndarray]) -> tuple[int, np.ndarray]:
 
 
 def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrinsics,
-           hull: HullSettings) -> int | list[int]:  # fmt: skip
+           hull: SetCoverSettings) -> int | list[int]:  # fmt: skip
     """One decision of ``method`` after the capture ``(view, points)``, as nbv.plan makes it
     (the chair is normalised already: its frame is the planners'), on the state nbv.plan
     builds (:func:`nbv.policies.episode.captured_state`)."""
     parts = [points if v == view else np.zeros((0, 3)) for v in range(len(poses))]
     state = captured_state(poses, parts, [view])
     ctx = with_shipped(
-        MethodContext({}, hull, intrinsics, DEFAULT_EPS, EPISODE_VIEWS, VolumetricSettings())
+        MethodContext({}, hull, intrinsics, DEFAULT_EPS, EPISODE_VIEWS, InfoGainSettings())
     )
     # The generator of nbv.scan.method.policy_rng.
     return METHODS[method].build(ctx, named_rng(0, "plan", method))(state)
@@ -58,7 +58,7 @@ def capture_rows(views: list[np.ndarray], poses: np.ndarray, intrinsics) -> list
     view, points = capture(views)
     # float32, as the plan's record holds them: the plain reference reads what the policy reads.
     points = points.astype(np.float32)
-    analytic, raycast = HullSettings(), HullSettings(simulation="raycast")
+    analytic, raycast = SetCoverSettings(), SetCoverSettings(simulation="raycast")
     rows = []
 
     def hull_ours():
@@ -71,7 +71,7 @@ def capture_rows(views: list[np.ndarray], poses: np.ndarray, intrinsics) -> list
         return decide(IG.name, view, points, poses, intrinsics, analytic)
 
     def ig_ref():
-        return plain_decision([(view, points)], poses, intrinsics, VolumetricSettings())
+        return plain_decision([(view, points)], poses, intrinsics, InfoGainSettings())
 
     for name, ours, ref, note in (
         (HULL_SCO.name, hull_ours, hull_ref, "analytic vs ray-cast view simulation"),

@@ -22,9 +22,9 @@ from scipy.spatial import ConvexHull, cKDTree
 from nbv.assets.meshes import Mesh, normalise, sample_surface
 from nbv.assets.synthetic import build, catalogue
 from nbv.assets.weights import SHIPPED_SCORER
+from nbv.bench.infogain import decision_row
 from nbv.bench.plan import capture_rows
 from nbv.bench.timing import best_time
-from nbv.bench.volumetric import decision_row
 from nbv.bench.warm import warm_rows
 from nbv.geometry.camera import Intrinsics, backproject, viewspace_poses
 from nbv.geometry.clouds import farthest_points
@@ -48,7 +48,7 @@ from nbv.setcover.greedy import greedy_max_coverage
 from nbv.setcover.hull_sampling import DEFAULT_N_SAMP, convex_hull, sample_hull
 from nbv.setcover.oneshot import Plan
 from nbv.setcover.oneshot import plan as sco_plan
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.setcover.view_sets import view_sets
 
 #: Points of the small ground truth whose hull :func:`small_gt_hull_error` checks.
@@ -194,7 +194,7 @@ def _set_cover_rows(scene: dict, start_cloud: np.ndarray, seed: int) -> list[dic
 
     def plan(**kw) -> Plan:
         return sco_plan(start_cloud, original_viewspace(), exclude=(1,),
-                        settings=HullSettings(**kw), poses=poses)  # fmt: skip
+                        settings=SetCoverSettings(**kw), poses=poses)  # fmt: skip
 
     rows = [
         _timed("view simulation, 33 views on a hull",

@@ -180,10 +180,28 @@ def _field_names(kind: Any) -> list[str]:
     return [f.name for f in dataclasses.fields(kind)] if dataclasses.is_dataclass(kind) else []
 
 
+#: Config keys that were renamed: old -> new (docs/journal.md, "Renames of the third
+#: restructuring"). An old key is refused with one line naming the new one.
+RENAMED_KEYS = {"hull": "setcover", "ig": "infogain"}
+
+
+def renamed_line(key: str) -> str | None:
+    """The refusal of a key path under a renamed key (``hull.dilate: renamed: give
+    setcover.dilate``); None for any other key."""
+    head, _, rest = str(key).partition(".")
+    if head not in RENAMED_KEYS:
+        return None
+    new = RENAMED_KEYS[head]
+    return f"{key}: renamed: give {new}.{rest}" if rest else f"{key}: renamed {new}"
+
+
 def _omegaconf_line(err: OmegaConfBaseException) -> str:
     key = err.full_key or err.key
     first = str(err.msg or err).splitlines()[0]
     if isinstance(err, ConfigKeyError | ConfigAttributeError) and " not in " in first:
+        renamed = renamed_line(key)
+        if renamed:
+            return renamed
         allowed = _field_names(getattr(err, "object_type", None))
         return f"{key}: unknown key" + (f"; allowed: {', '.join(allowed)}" if allowed else "")
     if isinstance(err, MissingMandatoryValue):

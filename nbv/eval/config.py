@@ -3,9 +3,9 @@
 :mod:`nbv.config.settings`).
 
 The method names, the network methods' checkpoint inputs and the disturbance checks come from the
-registry (:mod:`nbv.policies.registry`); the ``hull:`` and ``ig:`` groups are the planners' own
-settings (:class:`~nbv.setcover.settings.HullSettings`,
-:class:`~nbv.infogain.settings.VolumetricSettings`). :class:`EvalSettings` keeps the checks of
+registry (:mod:`nbv.policies.registry`); the ``setcover:`` and ``infogain:`` groups are the
+planners' own settings (:class:`~nbv.setcover.settings.SetCoverSettings`,
+:class:`~nbv.infogain.settings.InfoGainSettings`). :class:`EvalSettings` keeps the checks of
 names and of fields that go together, among them that every start view lies in every selected
 viewspace. :meth:`EvalSettings.stored` is the flat layout ``results.json`` and the episode log
 store the settings in.
@@ -39,11 +39,11 @@ from nbv.eval.config_checks import (
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_N_GT, DEFAULT_POINTS_PER_VIEW
 from nbv.geometry.viewspace import ViewspaceError, get_viewspace
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.policies.episode import DEFAULT_START_VIEWS, EPISODE_VIEWS
 from nbv.policies.method import CHECKS
 from nbv.policies.registry import DEFAULT_METHODS, METHODS, NETWORK_INPUTS, networks_of
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.utils.fields import at_least, or_null, positive
 
 #: The datasets read from ``data_dir`` (a dataset of ``make dataset``); the others are prepared
@@ -192,12 +192,12 @@ class EvalSettings:
             ``python -m train``, or of ``python -m train.conditioned`` for the
             viewspace-conditioned ones); every selected network method needs one, and so does
             the network a selected method is led by (``vig_hull_sco``: ``pcnbv_sph_vig``'s).
-        hull: the convex-hull set cover (:class:`~nbv.setcover.settings.HullSettings`).
-        ig: the volumetric information gain's occupancy map and scores
-            (:class:`~nbv.infogain.settings.VolumetricSettings`).
+        setcover: the convex-hull set cover (:class:`~nbv.setcover.settings.SetCoverSettings`).
+        infogain: the volumetric information gain's occupancy map and scores
+            (:class:`~nbv.infogain.settings.InfoGainSettings`).
         ig_scorer: the learned score of ig_learned, a ``scorer.json`` of
             ``python -m train.scorer``; null = the one the package ships
-            (nbv/assets/weights/ig_learned.json). It uses the ``ig:`` settings for its map.
+            (nbv/assets/weights/ig_learned.json). It uses the ``infogain:`` settings for its map.
         disturb: the disturbance checks (:class:`DisturbSettings`).
         random_repeats: episodes of a stochastic method (random) run with this many seeds each;
             its numbers are their means, so a comparison with random is not one seed's luck.
@@ -237,8 +237,8 @@ class EvalSettings:
     )
     n_views: int = setting(EPISODE_VIEWS, allows=at_least(2))
     checkpoints: dict[str, str] = setting(factory=dict)
-    hull: HullSettings = setting(factory=HullSettings)
-    ig: VolumetricSettings = setting(factory=VolumetricSettings)
+    setcover: SetCoverSettings = setting(factory=SetCoverSettings)
+    infogain: InfoGainSettings = setting(factory=InfoGainSettings)
     ig_scorer: Path | None = setting(None, convert=optional_path)
     disturb: DisturbSettings = setting(factory=DisturbSettings)
     random_repeats: int = setting(10, allows=at_least(1))
@@ -284,8 +284,10 @@ class EvalSettings:
             if source and MESH_SOURCES[source].installed is None and self.mesh_dir is None:
                 raise EvalConfigError(f"dataset={name} needs mesh_dir=<folder of mesh files>")
         check_ranges(self)
-        if not isinstance(self.hull.dilate, bool):
-            raise EvalConfigError(f"hull.dilate={self.hull.dilate!r}: must be true or false")
+        if not isinstance(self.setcover.dilate, bool):
+            raise EvalConfigError(
+                f"setcover.dilate={self.setcover.dilate!r}: must be true or false"
+            )
         for vs in self.viewspaces:
             try:
                 n = len(get_viewspace(vs))

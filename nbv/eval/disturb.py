@@ -25,11 +25,11 @@ import numpy as np
 from nbv.eval.statistics import episode_means, paired_from_means
 from nbv.geometry.views import CapturedViews
 from nbv.policies.episode import EpisodeState
-from nbv.policies.hull_sco import HullSCOPolicy
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.lockstep import Batchable, NetworkRequest, Request
 from nbv.policies.method import CHECKS
 from nbv.policies.network import NetworkPolicy
-from nbv.policies.volumetric import InformationGainPolicy
+from nbv.policies.setcover import SetCoverPolicy
 
 
 def random_ball(n: int, radius: float, rng: np.random.Generator) -> np.ndarray:
@@ -48,7 +48,7 @@ def permuted_state(view_state: np.ndarray, rng: np.random.Generator) -> np.ndarr
 class _Wrapper:
     """A disturbed policy reports the timings and notes of the policy it wraps (``inner``)."""
 
-    inner: NetworkPolicy | HullSCOPolicy
+    inner: NetworkPolicy | SetCoverPolicy
 
     @property
     def timings(self) -> dict[str, list[float]]:
@@ -109,7 +109,7 @@ class PermutedStateNetwork(_Wrapper):
 class RandomHullPlanner(_Wrapper):
     """The one-shot hull planner on the hull of random points (as many as the start view's)."""
 
-    inner: HullSCOPolicy
+    inner: SetCoverPolicy
     rng: np.random.Generator
     radius: float = 0.5
 
@@ -130,7 +130,7 @@ class NoisyPoints(_Wrapper):
     the episode's own record (coverage, VIG) still comes from the true model.
     """
 
-    inner: NetworkPolicy | HullSCOPolicy | InformationGainPolicy
+    inner: NetworkPolicy | SetCoverPolicy | InfoGainPolicy
     rng: np.random.Generator
     sigma: float
     _views: CapturedViews | None = None

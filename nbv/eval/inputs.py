@@ -166,8 +166,8 @@ def dataset_context(
     """What the methods of ``settings`` need on the dataset ``ds``: its camera and eps, the
     loaded networks, the run's planner settings, ``ig_learned``'s scorer (None without it) and
     the shipped completion network (loaded when a completion planner first runs)."""
-    return MethodContext(networks, settings.hull, ds.intrinsics, float(ds.attrs["eps"]),
-                         settings.n_views, settings.ig, scorer=scorer,
+    return MethodContext(networks, settings.setcover, ds.intrinsics, float(ds.attrs["eps"]),
+                         settings.n_views, settings.infogain, scorer=scorer,
                          completion=ShippedCompletion())  # fmt: skip
 
 

@@ -12,15 +12,15 @@ do not change what a method picks, so stored runs and the episode log's identity
   to reconstruction), ``chamfer`` (their mean), and ``precision_``, ``recall_``, ``fscore_`` at
   ``eps`` and ``2eps`` (the dataset's coverage distance): the accumulated cloud of the episode's
   views (the dataset's stored points, the normalised object frame) against the ground-truth
-  points (:mod:`nbv.geometry.reconstruction`);
+  points (:mod:`nbv.geometry.reconstruction_metrics`);
 * ``path_length``: the great-circle arcs between consecutive views at the viewspace's radius
   (the mean distance of its cameras from the object's centre); ``shortest_path``: the shortest
   open path from the start view through the same views (exact), what a one-shot plan's views
-  cost in their best order; NaN beyond :data:`~nbv.geometry.reconstruction.MAX_TOUR_VIEWS`.
+  cost in their best order; NaN beyond :data:`~nbv.geometry.reconstruction_metrics.MAX_TOUR_VIEWS`.
 
 :class:`ModelMetrics` keeps, per model, the ground truth's KD-tree (built once), each view's
-distances (:class:`~nbv.geometry.reconstruction.ViewDistances`, each view queried once) and each
-viewspace's arc matrix, so an episode's metrics cost a few vector operations.
+distances (:class:`~nbv.geometry.reconstruction_metrics.ViewDistances`, each view queried once)
+and each viewspace's arc matrix, so an episode's metrics cost a few vector operations.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from nbv.dataset.records import ModelData
-from nbv.geometry.reconstruction import (
+from nbv.geometry.reconstruction_metrics import (
     MAX_TOUR_VIEWS,
     ViewDistances,
     great_circle_matrix,

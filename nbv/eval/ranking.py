@@ -55,12 +55,12 @@ from nbv.eval.prepare import read_model
 from nbv.geometry.camera import Intrinsics
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.infogain.gain_scorer import load_scorer
-from nbv.policies.baselines import OraclePolicy
 from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
 from nbv.policies.method import MethodContext
+from nbv.policies.reference import OraclePolicy
 from nbv.policies.registry import METHODS, NETWORK_INPUTS, SCORED, SPREAD
 from nbv.scan.shipped import with_shipped
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.utils.atomic import write_text
 from nbv.utils.fields import at_least, or_null
 from nbv.utils.markdown import md_table
@@ -79,7 +79,9 @@ def _ranked() -> tuple[str, ...]:
     network (a two-stage planner) has none; any other method's policy is built once, with
     default settings, to see.
     """
-    ctx = with_shipped(MethodContext({}, HullSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS))
+    ctx = with_shipped(
+        MethodContext({}, SetCoverSettings(), Intrinsics(), DEFAULT_EPS, EPISODE_VIEWS)
+    )
     return tuple(
         m.name
         for m in METHODS.values()

@@ -17,9 +17,9 @@ The other modules:
   points themselves.
 * :mod:`~nbv.geometry.raycast`: Depth images of a triangle mesh by ray casting: Open3D's Embree
   scene, one ray per pixel centre.
-* :mod:`~nbv.geometry.reconstruction`: The field's reconstruction and path metrics of a set of
-  views: Chamfer distance, F-score, views to reach a coverage, great-circle camera paths and the
-  shortest path through views.
+* :mod:`~nbv.geometry.reconstruction_metrics`: The field's reconstruction and path metrics of a
+  set of views: Chamfer distance, F-score, views to reach a coverage, great-circle camera paths
+  and the shortest path through views.
 * :mod:`~nbv.geometry.symmetry`: Exact symmetries of a viewspace, and what they do to a training
   sample.
 * :mod:`~nbv.geometry.union`: Convex-hull volumes of unions of a model's views, grown one view at a

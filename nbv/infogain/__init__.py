@@ -1,7 +1,7 @@
 """Volumetric information gain (``ig``, ``ig_learned`` and their variants): score a candidate view
 by what an occupancy map says it would reveal.
 
-* :mod:`~nbv.infogain.settings`: :class:`~nbv.infogain.settings.VolumetricSettings` (``ig:`` in
+* :mod:`~nbv.infogain.settings`: :class:`~nbv.infogain.settings.InfoGainSettings` (``infogain:`` in
   the configs).
 * :mod:`~nbv.infogain.occupancy`: the occupancy map, updated as OctoMap updates its octree.
 * :mod:`~nbv.infogain.raytrace`: voxel traversal of rays through the map's grid.

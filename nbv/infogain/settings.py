@@ -1,4 +1,4 @@
-"""The volumetric information-gain planner's settings (``ig:`` in the configs)."""
+"""The volumetric information-gain planner's settings (``infogain:`` in the configs)."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from nbv.utils.fields import at_least, check_ranges, one_of, setting
 
 
 @dataclass(frozen=True)
-class VolumetricSettings:
-    """How the volumetric information-gain planner maps and scores (``ig:`` in
+class InfoGainSettings:
+    """How the volumetric information-gain planner maps and scores (``infogain:`` in
     ``conf/eval.yaml``).
 
     Attributes:

@@ -21,7 +21,7 @@ from nbv.assets.meshes import Mesh, MeshError, load_mesh, normalise, sample_surf
 from nbv.dataset.records import ModelData
 from nbv.dataset.views import view_data
 from nbv.geometry.hull import QhullFailure, hull_volume
-from nbv.geometry.reconstruction import mesh_scores
+from nbv.geometry.reconstruction_metrics import mesh_scores
 from nbv.plan.config import PlanSettings
 from nbv.policies.episode import run_episode, stage_seconds
 from nbv.policies.registry import METHODS

@@ -69,7 +69,8 @@ def _jsonable(value):
 RECORD_ORDER = (
     "out_dir", "method", "mesh", "captures", "viewspace", "distance", "center", "radius",
     "start_view", "n_views", "camera", "match_degrees", "points_per_view", "eps", "n_gt",
-    "save_captures", "captures_out", "hull", "ig", "checkpoint", "seed", "picture", "page",
+    "save_captures", "captures_out", "setcover", "infogain", "checkpoint", "seed", "picture",
+    "page",
 )  # fmt: skip
 
 

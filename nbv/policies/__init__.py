@@ -1,9 +1,9 @@
 """View-selection methods behind one interface: ``policy(state) -> view | [views]``.
 
 * :mod:`~nbv.policies.episode`: the episode state, running an episode, coverage curves, AUC.
-* :mod:`~nbv.policies.baselines`: random, spread and the oracle.
+* :mod:`~nbv.policies.reference`: random, spread and the oracle.
 * :mod:`~nbv.policies.network`: a trained PCNBV / PCNBV-sph checkpoint.
-* :mod:`~nbv.policies.hull_sco`: the convex-hull planner, one-shot or replanned.
+* :mod:`~nbv.policies.setcover`: the convex-hull planner, one-shot or replanned.
 * :mod:`~nbv.policies.inputs`: the cloud and signature a policy computes, with their times.
 * :mod:`~nbv.policies.registry`: the one table of methods: name, needs, checks, builder.
 * :mod:`~nbv.policies.method`: what a method is (:class:`~nbv.policies.method.Method`) and what
@@ -31,7 +31,7 @@ The other modules:
   set cover plans the rest.
 * :mod:`~nbv.policies.view_matching`: A PCNBV network on another viewspace than the one it was
   trained on, its views matched by direction.
-* :mod:`~nbv.policies.volumetric`: Volumetric information gain: the classical generate-and-test
+* :mod:`~nbv.policies.infogain`: Volumetric information gain: the classical generate-and-test
   next-best view on an occupancy map.
 
 Third-party imports: numpy, open3d, scipy, torch.

@@ -12,21 +12,21 @@ from collections.abc import Callable
 import numpy as np
 
 from nbv.geometry.viewspace import original_viewspace
-from nbv.policies.baselines import OraclePolicy, RandomPolicy, SpreadPolicy
 from nbv.policies.completion import (
     CompletionGainPolicy,
     CompletionHullPolicy,
     CompletionHullReplanPolicy,
 )
 from nbv.policies.episode import Policy
-from nbv.policies.hull_sco import HullSCOPolicy, HullSCOReplanPolicy
 from nbv.policies.hybrid import HullThenGainPolicy
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
 from nbv.policies.method import MethodContext, completion_of, scorer_of
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.reference import OraclePolicy, RandomPolicy, SpreadPolicy
+from nbv.policies.setcover import SetCoverPolicy, SetCoverReplanPolicy
 from nbv.policies.two_stage import NetworkThenHullPolicy
 from nbv.policies.view_matching import MatchedNetworkPolicy
-from nbv.policies.volumetric import InformationGainPolicy
 
 #: A method's builder: the run's context and the episode's generator -> a fresh policy.
 Builder = Callable[[MethodContext, np.random.Generator], Policy]
@@ -85,16 +85,16 @@ def hull_policy(
     sph: bool = False,
     probes: bool = False,
     replan: bool = False,
-) -> HullSCOPolicy:
+) -> SetCoverPolicy:
     """The convex-hull set cover of the run's ``hull`` settings: on the signature's hull with
-    ``sph``, after ``hull.probes`` random views with ``probes``, replanned every view with
+    ``sph``, after ``setcover.probes`` random views with ``probes``, replanned every view with
     ``replan``."""
-    kind = HullSCOReplanPolicy if replan else HullSCOPolicy
+    kind = SetCoverReplanPolicy if replan else SetCoverPolicy
     return kind(
         rng=rng,
-        settings=ctx.hull,
+        settings=ctx.setcover,
         sph=sph,
-        probes=ctx.hull.probes if probes else 0,
+        probes=ctx.setcover.probes if probes else 0,
         n_views=ctx.n_views,
         intrinsics=ctx.intrinsics,
         eps=ctx.eps,
@@ -107,7 +107,7 @@ def hull(sph: bool = False, probes: bool = False, replan: bool = False) -> Build
 
 
 def two_stage(leader: str, sph: bool, matched: bool = False) -> Builder:
-    """The two-stage planner: network ``leader``'s picks for ``hull.network_views`` decisions
+    """The two-stage planner: network ``leader``'s picks for ``setcover.network_views`` decisions
     (its views matched with the episode's by direction with ``matched``), then a one-shot plan
     (on the signature's hull with ``sph``) on the whole cloud."""
 
@@ -116,20 +116,20 @@ def two_stage(leader: str, sph: bool, matched: bool = False) -> Builder:
         if matched:
             network = MatchedNetworkPolicy(network, original_viewspace())
         return NetworkThenHullPolicy(network, hull_policy(ctx, rng, sph=sph),
-                                     ctx.hull.network_views)  # fmt: skip
+                                     ctx.setcover.network_views)  # fmt: skip
 
     return build
 
 
-def information_gain(ctx: MethodContext, rng: np.random.Generator) -> InformationGainPolicy:
+def information_gain(ctx: MethodContext, rng: np.random.Generator) -> InfoGainPolicy:
     """Volumetric information gain of the run's ``ig`` settings (candidate voxels shared)."""
-    return InformationGainPolicy(ctx.volumetric, ctx.intrinsics, traced=ctx.traced)
+    return InfoGainPolicy(ctx.infogain, ctx.intrinsics, traced=ctx.traced)
 
 
 def information_gain_by(metric: str) -> Builder:
     """:func:`information_gain` with the run's ``ig`` settings but ``metric``."""
-    return lambda ctx, rng: InformationGainPolicy(
-        dataclasses.replace(ctx.volumetric, metric=metric), ctx.intrinsics, traced=ctx.traced
+    return lambda ctx, rng: InfoGainPolicy(
+        dataclasses.replace(ctx.infogain, metric=metric), ctx.intrinsics, traced=ctx.traced
     )
 
 
@@ -140,7 +140,7 @@ def hull_then_gain(ctx: MethodContext, rng: np.random.Generator) -> Policy:
 
 def learned_gain(ctx: MethodContext, rng: np.random.Generator) -> Policy:
     """Information gain's map, candidates ranked by the context's learned score."""
-    return LearnedGainPolicy(ctx.volumetric, ctx.intrinsics, traced=ctx.traced,
+    return LearnedGainPolicy(ctx.infogain, ctx.intrinsics, traced=ctx.traced,
                              scorer=scorer_of(ctx))  # fmt: skip
 
 
@@ -149,7 +149,7 @@ def completion_hull(replan: bool = False) -> Builder:
     kind = CompletionHullReplanPolicy if replan else CompletionHullPolicy
 
     def build(ctx: MethodContext, rng: np.random.Generator) -> Policy:
-        return kind(rng=rng, settings=ctx.hull, n_views=ctx.n_views, intrinsics=ctx.intrinsics,
+        return kind(rng=rng, settings=ctx.setcover, n_views=ctx.n_views, intrinsics=ctx.intrinsics,
                     eps=ctx.eps, complete=completion_of(ctx))  # fmt: skip
 
     return build

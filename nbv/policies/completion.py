@@ -14,7 +14,7 @@ within radius 0.5 of the origin) to points on the whole surface ((M, 3)): the tr
   seed paper's authors ran it (FACTS.md): drop the predicted points within ``eps`` of a captured
   point, then count each candidate's visible ones by hidden-point removal on what is left.
 - :class:`CompletionHullPolicy` (``completion_hull_sco``): the paper's "convex hull of the
-  predicted point cloud": the one-shot set cover of :class:`~nbv.policies.hull_sco.HullSCOPolicy`
+  predicted point cloud": the one-shot set cover of :class:`~nbv.policies.setcover.SetCoverPolicy`
   planned on the hull of the captured cloud and its completion;
   :class:`CompletionHullReplanPolicy` plans again after every view.
 """
@@ -34,8 +34,8 @@ from nbv.geometry.point_visibility import SplatSettings, cloud_spacing, visible_
 from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.viewspace import angular_distances, unit_directions
 from nbv.policies.episode import EpisodeState
-from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.policies.inputs import cloud_or_origin, record_time
+from nbv.policies.setcover import SetCoverPolicy
 
 #: A completion: (N, 3) captured points -> (M, 3) points on the whole surface.
 Completion = Callable[[np.ndarray], np.ndarray]
@@ -200,8 +200,8 @@ class CompletionGainPolicy:
 
 
 @dataclass
-class CompletionHullPolicy(HullSCOPolicy):
-    """:class:`HullSCOPolicy` planned once, from the start view, on the hull of the captured
+class CompletionHullPolicy(SetCoverPolicy):
+    """:class:`SetCoverPolicy` planned once, from the start view, on the hull of the captured
     cloud and its completion (``probes`` is not used)."""
 
     complete: Completion | None = field(default=None, kw_only=True)

@@ -2,7 +2,7 @@
 policy.
 
 A network that reads map features (``vcnbv_map``) keeps the occupancy map of ``ig`` beside it
-(an :class:`~nbv.policies.volumetric.InformationGainPolicy`, the ``mapper``) and gives it the
+(an :class:`~nbv.policies.infogain.InfoGainPolicy`, the ``mapper``) and gives it the
 captured views; each decision reads the unvisited candidates' features off that map.
 """
 
@@ -19,9 +19,9 @@ from nbv.geometry.clouds import farthest_points
 from nbv.geometry.viewspace import unit_directions
 from nbv.infogain.view_features import unvisited_features
 from nbv.policies.episode import EpisodeState
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.inputs import cloud_or_origin, record_time
 from nbv.policies.lockstep import StateRequest
-from nbv.policies.volumetric import InformationGainPolicy
 
 
 @dataclass
@@ -42,7 +42,7 @@ class ConditionedPolicy:
     last_gains: list[float] = field(default_factory=list)
     selected_on: tuple[str, ...] = ()
     input: str = "directions"
-    mapper: InformationGainPolicy | None = None
+    mapper: InfoGainPolicy | None = None
 
     @classmethod
     def from_checkpoint(cls, path: str | Path) -> ConditionedPolicy:
@@ -65,7 +65,7 @@ class ConditionedPolicy:
         """The network reads map features (it needs a ``mapper``)."""
         return int(self.model.config.map_features) > 0
 
-    def fresh(self, mapper: InformationGainPolicy | None = None) -> ConditionedPolicy:
+    def fresh(self, mapper: InfoGainPolicy | None = None) -> ConditionedPolicy:
         """The same network with empty ``timings`` and ``notes``, and ``mapper`` (a fresh map
         for an episode) as its map."""
         return ConditionedPolicy(
@@ -78,7 +78,7 @@ class ConditionedPolicy:
         if self.mapper is None:
             raise ValueError(
                 "this network reads map features: build its policy with fresh(mapper=...), an "
-                "InformationGainPolicy of the map settings it was trained on"
+                "InfoGainPolicy of the map settings it was trained on"
             )
         self.mapper.update(state)
         poses = state.views.poses

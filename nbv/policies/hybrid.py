@@ -2,7 +2,7 @@
 
 hull_sco plans from the start view's cloud; once its greedy set cover has covered the hull, the
 rest of its plan is fill (zero-gain picks spread over the viewspace). This policy takes the plan's
-covering picks only, then lets :class:`nbv.policies.volumetric.InformationGainPolicy` choose each
+covering picks only, then lets :class:`nbv.policies.infogain.InfoGainPolicy` choose each
 later view on the occupancy map of everything captured.
 """
 
@@ -11,16 +11,16 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from nbv.policies.episode import EpisodeState
-from nbv.policies.hull_sco import HullSCOPolicy
-from nbv.policies.volumetric import InformationGainPolicy
+from nbv.policies.infogain import InfoGainPolicy
+from nbv.policies.setcover import SetCoverPolicy
 
 
 @dataclass
 class HullThenGainPolicy:
     """hull_sco's covering picks, then information gain (see the module docstring)."""
 
-    hull: HullSCOPolicy
-    gain: InformationGainPolicy
+    hull: SetCoverPolicy
+    gain: InfoGainPolicy
     planned: bool = field(default=False, init=False)
 
     @property

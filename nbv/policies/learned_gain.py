@@ -19,16 +19,16 @@ import numpy as np
 from nbv.geometry.camera import Intrinsics
 from nbv.infogain.gain import view_gains
 from nbv.infogain.gain_scorer import GainScorer, load_scorer
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.infogain.view_features import unvisited_features
 from nbv.policies.episode import EpisodeState
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.inputs import record_time
-from nbv.policies.volumetric import InformationGainPolicy
 from nbv.utils.selection import masked_argmax
 
 
 @dataclass
-class LearnedGainPolicy(InformationGainPolicy):
+class LearnedGainPolicy(InfoGainPolicy):
     """The unvisited view of the highest learned score on the map of the captured views
     (ties to the lowest index). ``last_gains`` holds the chosen view's ``ig`` gain, and a pick
     whose rays see no unknown voxel counts as ``zero_gain``."""
@@ -37,12 +37,12 @@ class LearnedGainPolicy(InformationGainPolicy):
 
     @classmethod
     def from_checkpoint(
-        cls, path: str | Path, intrinsics: Intrinsics, settings: VolumetricSettings | None = None
+        cls, path: str | Path, intrinsics: Intrinsics, settings: InfoGainSettings | None = None
     ) -> LearnedGainPolicy:
         """The policy of the scorer file ``path`` (:func:`nbv.infogain.gain_scorer.load_scorer`;
         ``ScorerError`` names a bad file) on the map of ``settings`` (default: ``ig``'s
         defaults, on which the shipped scorer was trained)."""
-        return cls(settings or VolumetricSettings(), intrinsics, scorer=load_scorer(path))
+        return cls(settings or InfoGainSettings(), intrinsics, scorer=load_scorer(path))
 
     def view_scores(self, state: EpisodeState) -> np.ndarray:
         """(V,) the learned scores this policy picks by in ``state`` (-inf for visited views)."""

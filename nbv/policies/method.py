@@ -18,12 +18,12 @@ import numpy as np
 
 from nbv.geometry.camera import Intrinsics
 from nbv.infogain.gain_scorer import GainScorer
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.policies.completion import Completion
 from nbv.policies.conditioned_network import ConditionedPolicy
 from nbv.policies.episode import Policy
 from nbv.policies.network import NetworkPolicy
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 #: Disturbance checks (the paper's Fig. 18, and Gaussian position noise on the cloud a method
 #: sees): what each one replaces of a policy's input.
@@ -56,11 +56,11 @@ class MethodContext:
     """
 
     networks: Mapping[str, NetworkPolicy]
-    hull: HullSettings
+    setcover: SetCoverSettings
     intrinsics: Intrinsics
     eps: float
     n_views: int
-    volumetric: VolumetricSettings = field(default_factory=VolumetricSettings)
+    infogain: InfoGainSettings = field(default_factory=InfoGainSettings)
     traced: dict = field(default_factory=dict, compare=False, repr=False)
     scorer: GainScorer | None = field(default=None, compare=False, repr=False)
     completion: Completion | None = field(default=None, compare=False, repr=False)

@@ -126,13 +126,13 @@ HULL_SCO_SPH = Method(
 )
 HULL_SCO_PROBES = Method(
     "hull_sco_probes",
-    "hull_sco after `hull.probes` random probe views",
+    "hull_sco after `setcover.probes` random probe views",
     builders.hull(probes=True),
     geometric=True,
 )
 VIG_HULL_SCO = Method(
     "vig_hull_sco",
-    "the paper's two-stage planner: pcnbv_sph_vig picks `hull.network_views` views, then "
+    "the paper's two-stage planner: pcnbv_sph_vig picks `setcover.network_views` views, then "
     "hull_sco plans the rest on the hull of the whole cloud",
     builders.two_stage(PCNBV_SPH_VIG.name, sph=False),
     network=PCNBV_SPH_VIG.name,

@@ -5,7 +5,7 @@ VIG (volumetric information gain) is the hull volume of the captured points over
 A network trained to predict it picks views one at a time after the start view, so that the
 partial cloud's convex hull grows towards the object's; then the hull of the whole accumulated
 cloud is planned once by the one-shot set cover
-(:meth:`~nbv.policies.hull_sco.HullSCOPolicy.plan_rest`), and its plan gives the remaining views.
+(:meth:`~nbv.policies.setcover.SetCoverPolicy.plan_rest`), and its plan gives the remaining views.
 """
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from nbv.policies.episode import EpisodeState
-from nbv.policies.hull_sco import HullSCOPolicy
 from nbv.policies.lockstep import NetworkRequest
 from nbv.policies.network import NetworkPolicy
+from nbv.policies.setcover import SetCoverPolicy
 
 
 @dataclass
@@ -28,8 +28,8 @@ class NetworkThenHullPolicy:
     excluded, and the episode takes the plan in order. Which stage a call is in follows from the
     state alone. ``network_views = 0`` is the one-shot planner itself.
 
-    The default of ``network_views`` (``hull.network_views``,
-    :class:`~nbv.setcover.settings.HullSettings`) is 2: the paper's Fig. 13 shows VIG nearly
+    The default of ``network_views`` (``setcover.network_views``,
+    :class:`~nbv.setcover.settings.SetCoverSettings`) is 2: the paper's Fig. 13 shows VIG nearly
     saturating after 2-3 views, and each network view is one view fewer for the set cover's plan.
 
     Attributes:
@@ -39,7 +39,7 @@ class NetworkThenHullPolicy:
     """
 
     network: NetworkPolicy
-    hull: HullSCOPolicy
+    hull: SetCoverPolicy
     network_views: int = 2
     #: The last decision was the set cover's plan (its ``last_gains`` are then the plan's).
     planned: bool = field(default=False, init=False)

@@ -10,7 +10,7 @@ what its missing pixels mean is kept (:attr:`nbv.geometry.views.CapturedViews.mi
 builds the state of the views so far (:func:`nbv.policies.episode.captured_state`) and calls the
 same policy again: ``ig``'s map takes only the views it has not seen, and the candidates' rays are
 traced again only where a pose changed
-(:meth:`~nbv.policies.volumetric.InformationGainPolicy.retrace_candidates`).
+(:meth:`~nbv.policies.infogain.InfoGainPolicy.retrace_candidates`).
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.clouds import random_subset
 from nbv.infogain.occupancy import Misses
 from nbv.policies.episode import captured_state, stage_seconds
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
-from nbv.policies.volumetric import InformationGainPolicy
 from nbv.scan.capture import Capture, CaptureError, check_views_see
 from nbv.scan.frame import ObjectFrame
 from nbv.scan.method import policy_rng, predicted_gains, scan_context
@@ -189,7 +189,7 @@ class Decider:
         # dataset's "background is free" (points subsampled create no misses either).
         state = captured_state(self.poses, self.parts, self.index, settings.points_per_view,
                                self.misses)  # fmt: skip
-        if isinstance(policy, InformationGainPolicy) and self._traced_poses is not None:
+        if isinstance(policy, InfoGainPolicy) and self._traced_poses is not None:
             policy.retrace_candidates(self.poses, self._traced_poses)
         t0 = time.perf_counter()
         choice = policy(state)

@@ -50,11 +50,11 @@ def scan_context(settings: ScanSettings, camera: Intrinsics, n_views: int) -> Me
     return with_shipped(
         MethodContext(
             networks=networks,
-            hull=settings.hull,
+            setcover=settings.setcover,
             intrinsics=camera,
             eps=settings.eps,
             n_views=settings.n_views,
-            volumetric=settings.ig,
+            infogain=settings.infogain,
         )
     )
 

@@ -11,7 +11,7 @@ after every view, so :class:`Planner` keeps what does not change between decisio
 * the candidate poses and their limits, the policy of the method with its network or scorer,
   and the compiled code;
 * ``ig``'s and ``ig_learned``'s occupancy map, which takes only the new view's rays at each
-  decision (:meth:`nbv.policies.volumetric.InformationGainPolicy.update`), and the candidates'
+  decision (:meth:`nbv.policies.infogain.InfoGainPolicy.update`), and the candidates'
   rays, traced once.
 
 Each view is read as a capture file would be (:func:`nbv.scan.capture.depth_capture`,

@@ -17,12 +17,12 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.fusion import FusionSettings
 from nbv.geometry.scores import DEFAULT_EPS, DEFAULT_POINTS_PER_VIEW
 from nbv.geometry.viewspace_generators import ViewspaceSpec
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.policies.episode import EPISODE_VIEWS
 from nbv.policies.registry import IG, METHODS
 from nbv.scan.candidates import CandidateSettings
 from nbv.scan.object_estimate import EstimateSettings
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.utils.fields import ConfigError, at_least, check_ranges, positive, setting
 
 #: The methods a user may plan with: those that do not read the ground truth.
@@ -144,8 +144,8 @@ class ScanSettings:
             them); 0 keeps all (``protocol.points_per_view``).
         eps: the convex-hull planners' capture distance, normalised units (the object fits in
             radius 0.5), and a mesh episode's coverage distance (``protocol.eps``).
-        hull: the convex-hull planners' settings (:class:`HullSettings`).
-        ig: the information-gain planners' settings (:class:`VolumetricSettings`).
+        setcover: the convex-hull planners' settings (:class:`SetCoverSettings`).
+        infogain: the information-gain planners' settings (:class:`InfoGainSettings`).
         reconstruction: the depth views fused into a mesh
             (:class:`~nbv.geometry.fusion.FusionSettings`).
         seed: every random draw (random views, hull samples, point subsets, a mesh's ground
@@ -162,8 +162,8 @@ class ScanSettings:
     match_degrees: float = setting(2.0, check=lambda v: 0 <= v < 90, allowed="degrees in [0, 90)")
     points_per_view: int = setting(DEFAULT_POINTS_PER_VIEW, allows=at_least(0, note="0 = all"))
     eps: float = setting(DEFAULT_EPS, allows=positive("distance"))
-    hull: HullSettings = setting(factory=HullSettings)
-    ig: VolumetricSettings = setting(factory=VolumetricSettings)
+    setcover: SetCoverSettings = setting(factory=SetCoverSettings)
+    infogain: InfoGainSettings = setting(factory=InfoGainSettings)
     reconstruction: FusionSettings = setting(factory=FusionSettings)
     seed: int = 0
 

@@ -12,7 +12,7 @@ from nbv.geometry.scores import DEFAULT_EPS
 from nbv.geometry.sph import equiangular_directions, signature_with_centroid, unit_vectors
 from nbv.setcover.greedy import DEFAULT_N_ITER, as_exclude, greedy_packed, pack_sets
 from nbv.setcover.hull_sampling import convex_hull, sample_on_hull
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 from nbv.setcover.view_sets import view_sets
 from nbv.setcover.visibility import as_poses
 
@@ -50,7 +50,7 @@ def plan(
     n_iter: int = DEFAULT_N_ITER,
     exclude: Iterable[int] = (),
     rng: np.random.Generator | int = 0,
-    settings: HullSettings = HullSettings(),  # noqa: B008 - frozen dataclass
+    settings: SetCoverSettings = SetCoverSettings(),  # noqa: B008 - frozen dataclass
     intrinsics: Intrinsics = Intrinsics(),  # noqa: B008 - frozen dataclass, immutable default
     eps: float = DEFAULT_EPS,
     poses: np.ndarray | None = None,

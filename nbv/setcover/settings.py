@@ -13,7 +13,7 @@ SIMULATIONS = ("analytic", "raycast")
 
 
 @dataclass(frozen=True)
-class HullSettings:
+class SetCoverSettings:
     """How the convex-hull set cover plans (``hull:`` in ``conf/eval.yaml``).
 
     Attributes:

@@ -13,7 +13,7 @@ from nbv.policies.episode import EPISODE_VIEWS, EpisodeState
 from nbv.policies.inputs import NO_SPREAD, cloud_or_origin, has_spread, record_time
 from nbv.setcover.hull_sampling import cameras_inside, convex_hull
 from nbv.setcover.oneshot import Plan, plan, sph_hull_points
-from nbv.setcover.settings import HullSettings
+from nbv.setcover.settings import SetCoverSettings
 
 #: Relative thickness given to a cloud whose hull has no volume (see :func:`thicken`).
 THICKEN_RTOL = 1e-3
@@ -41,7 +41,7 @@ def thicken(points: np.ndarray, rtol: float = THICKEN_RTOL) -> np.ndarray:
 
 
 @dataclass
-class HullSCOPolicy:
+class SetCoverPolicy:
     """Convex-hull set cover, one-shot (the paper's Algorithms 2 and 3).
 
     On the first call, with ``probes == 0``: plan every remaining view from the start view's
@@ -59,7 +59,7 @@ class HullSCOPolicy:
         rng: generator of the probe views, probe points and the hull samples; each plan's
             zero-gain fill breaks its ties with a child of it (:func:`nbv.setcover.oneshot.plan`:
             spawned, so the draws above are those of a plan with a lowest-index fill).
-        settings: the planner's settings (:class:`nbv.setcover.settings.HullSettings`):
+        settings: the planner's settings (:class:`nbv.setcover.settings.SetCoverSettings`):
             hull samples, view simulation, dilation, the signature's degree ``lmax`` and the
             ``probe_points`` of each probe view.
         sph: plan on the hull of the cloud's spherical signature of degree ``settings.lmax``.
@@ -72,7 +72,7 @@ class HullSCOPolicy:
     """
 
     rng: np.random.Generator
-    settings: HullSettings = field(default_factory=HullSettings)
+    settings: SetCoverSettings = field(default_factory=SetCoverSettings)
     sph: bool = False
     probes: int = 0
     n_views: int = EPISODE_VIEWS
@@ -186,7 +186,7 @@ class HullSCOPolicy:
 
 
 @dataclass
-class HullSCOReplanPolicy(HullSCOPolicy):
+class SetCoverReplanPolicy(SetCoverPolicy):
     """Convex-hull set cover rerun after every captured view on the whole accumulated cloud;
     the first view of each plan is taken. (The greedy's first pick does not depend on how many
     views it plans, so each plan is of one view.) ``probes`` is not used."""

@@ -7,7 +7,7 @@
 ``ig_learned`` decision), timed against the policies themselves (:func:`decision`): the fair
 references of :mod:`nbv.infogain.raytrace`,
 :func:`nbv.infogain.gain.ray_gains`, :func:`nbv.infogain.view_features.ray_features`,
-:class:`nbv.policies.volumetric.InformationGainPolicy` and
+:class:`nbv.policies.infogain.InfoGainPolicy` and
 :class:`nbv.policies.learned_gain.LearnedGainPolicy`.
 """
 
@@ -23,10 +23,10 @@ from nbv.infogain.gain import candidate_segments, frontier
 from nbv.infogain.gain_scorer import GainScorer
 from nbv.infogain.occupancy import OccupancyMap, background_directions, log_odds_of
 from nbv.infogain.raytrace import clip_to_box, drop_end_voxels, flat_index
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.policies.episode import captured_state
+from nbv.policies.infogain import InfoGainPolicy
 from nbv.policies.learned_gain import LearnedGainPolicy
-from nbv.policies.volumetric import InformationGainPolicy
 
 
 def numpy_traverse(
@@ -165,7 +165,7 @@ def _plain_insert(occupancy: OccupancyMap, origin, hits, misses) -> None:
 
 
 def plain_decision(
-    views, poses, intrinsics: Intrinsics, settings: VolumetricSettings,
+    views, poses, intrinsics: Intrinsics, settings: InfoGainSettings,
     scorer: GainScorer | None = None,
 ) -> int:  # fmt: skip
     """One information-gain decision in plain numpy: map the captured ``views`` (a list of
@@ -196,11 +196,11 @@ def plain_decision(
 
 
 def decision(
-    views, poses, intrinsics: Intrinsics, settings: VolumetricSettings,
+    views, poses, intrinsics: Intrinsics, settings: InfoGainSettings,
     scorer: GainScorer | None = None,
 ) -> int:  # fmt: skip
     """The same decision as :func:`plain_decision` made by the policy itself: a fresh
-    :class:`~nbv.policies.volumetric.InformationGainPolicy` (``scorer``: a
+    :class:`~nbv.policies.infogain.InfoGainPolicy` (``scorer``: a
     :class:`~nbv.policies.learned_gain.LearnedGainPolicy`) called once on the captured state
     (:func:`nbv.policies.episode.captured_state`, whose record holds the points as float32), as
     it makes its first decision on a viewspace: the map built, the candidates' voxels traced."""
@@ -210,7 +210,7 @@ def decision(
     state = captured_state(poses, parts, [v for v, _ in views])
     if scorer is not None:
         return LearnedGainPolicy(settings, intrinsics, scorer=scorer)(state)
-    return InformationGainPolicy(settings, intrinsics)(state)
+    return InfoGainPolicy(settings, intrinsics)(state)
 
 
 def decision_row(
@@ -220,7 +220,7 @@ def decision_row(
     """The benchmark row of one information-gain decision (``scorer``: an ``ig_learned`` one)
     after two captured views (1 and 9) at the default settings: seconds of ours and of the plain
     reference, the same inputs, the same number of runs each."""
-    settings = VolumetricSettings()
+    settings = InfoGainSettings()
     # float32, as a record holds them and the policy reads them: both sides get the same points.
     views = [(v, stored[v].astype(np.float32)) for v in (1, 9)]
     ours = best_time(lambda: decision(views, poses, intrinsics, settings, scorer), repeat=3,

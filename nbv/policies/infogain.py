@@ -24,19 +24,19 @@ from nbv.geometry.camera import Intrinsics
 from nbv.geometry.viewspace import angular_distances
 from nbv.infogain.gain import candidate_voxels, view_gains
 from nbv.infogain.occupancy import OccupancyMap
-from nbv.infogain.settings import VolumetricSettings
+from nbv.infogain.settings import InfoGainSettings
 from nbv.policies.episode import EpisodeState
 from nbv.policies.inputs import record_time
 from nbv.utils.selection import masked_argmax
 
 
 @dataclass
-class InformationGainPolicy:
+class InfoGainPolicy:
     """The unvisited view of the highest information gain on the map of the captured views;
     ties to the lowest index. ``counts`` holds its picks (``planned``) and those of zero gain
     (``zero_gain``: the lowest-index fill once no candidate sees anything unknown)."""
 
-    settings: VolumetricSettings
+    settings: InfoGainSettings
     intrinsics: Intrinsics
     timings: dict[str, list[float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
