@@ -93,7 +93,7 @@ def test_full_run_writes_every_output(full_run):
     # The settings keep the flat layout runs have always stored (EvalSettings.stored).
     assert list(data["settings"]) == [
         "out_dir", "methods", "datasets", "data_dir", "mesh_dir", "limit", "prepare",
-        "viewspaces", "start_views", "n_views", "checkpoints", "hull", "ig", "ig_scorer",
+        "viewspaces", "start_views", "n_views", "checkpoints", "setcover", "infogain", "ig_scorer",
         "checks", "disturb_viewspaces", "disturb_start_views", "disturb_radius", "noise_sigmas",
         "random_repeats", "seed", "threads", "workers", "progress", "plots", "batched",
         "precision",
@@ -453,7 +453,7 @@ def test_mesh_folder_is_prepared_once_and_a_flat_mesh_gives_nan_vig(tiny, tmp_pa
         (dict(n_views=1), "n_views=1"),
         (dict(seed="abc"), "seed='abc': must be an integer"),
         (dict(colour="red"), "colour: unknown key; allowed: run, out_root, methods"),
-        (dict(setcover={"radius": 2}), "hull.radius: unknown key; allowed: n_samp, simulation"),
+        (dict(setcover={"radius": 2}), "setcover.radius: unknown key; allowed: n_samp, simulation"),
         (dict(start_views=[24, 40]),
          "start_views=[40]: the viewspace 'original' has 33 views (indices 0..32)"),
         (dict(checkpoints={"pcnbv": "a.pt", "dqn": "b.pt"}), "checkpoints: unknown ['dqn']"),

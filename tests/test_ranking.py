@@ -21,6 +21,7 @@ from nbv.eval.ranking import RANKED, oracle_states, ranking, reliability_summary
 from nbv.policies.method import MethodContext
 from nbv.policies.reference import OraclePolicy
 from nbv.policies.registry import METHODS, NETWORK_INPUTS
+from nbv.scan.shipped import with_shipped
 from nbv.utils.ranking import spearman, spearman_per_sample, split_half_reliability
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -96,6 +97,7 @@ def test_every_ranked_method_picks_the_best_of_its_view_scores(tiny, name):
     networks, skipped = load_networks(settings, 33)
     assert not skipped
     ctx = MethodContext(networks, settings.setcover, ds.intrinsics, float(ds.attrs["eps"]), 10)
+    ctx = with_shipped(ctx)
     scoring = METHODS[name].build(ctx, np.random.default_rng(5))
     picking = METHODS[name].build(ctx, np.random.default_rng(5))
     for state in oracle_states(model, "original", 1, 10):

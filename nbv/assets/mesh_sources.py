@@ -27,6 +27,7 @@ from nbv.assets.catalogues import (
     ycb_catalogue,
 )
 from nbv.assets.real_objects import default_root
+from nbv.utils.declared import look_up
 
 
 @dataclass(frozen=True)
@@ -115,9 +116,7 @@ def mesh_source(name: str) -> MeshSource:
     Raises:
         CatalogueError: no such source (the message lists the declared ones).
     """
-    if name not in MESH_SOURCES:
-        raise CatalogueError(f"unknown mesh source {name!r}; allowed: {', '.join(MESH_SOURCES)}")
-    return MESH_SOURCES[name]
+    return look_up(MESH_SOURCES, name, "mesh source", error=CatalogueError)
 
 
 def catalogue(

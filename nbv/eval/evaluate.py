@@ -29,9 +29,7 @@ from nbv.eval.inputs import (
     EvalDataError,
     dataset_context,
     exclude_selection,
-    load_networks,
-    open_datasets,
-    unusable,
+    open_inputs,
     with_shipped_weights,
 )
 from nbv.eval.metrics import ModelMetrics, fill_metrics
@@ -241,11 +239,7 @@ def evaluate(settings: EvalSettings) -> Evaluation:
     """Run every episode of the settings (see the module docstring)."""
     from tqdm import tqdm
 
-    opened = open_datasets(settings)
-    networks, skipped = load_networks(settings, None)
-    sizes = {vs: n for info, _ in opened for vs, n in info.sizes.items()}
-    skip_on = unusable(settings, networks, sizes)
-    skipped.update(skip_on)
+    opened, networks, skipped, skip_on = open_inputs(settings)
     for method, reason in skipped.items():
         log.warning("skipping %s: %s", method, reason)
     for info, ds in opened:

@@ -252,3 +252,13 @@ def with_shipped_weights(settings: EvalSettings) -> EvalSettings:
     if not found:
         return settings
     return dataclasses.replace(settings, checkpoints={**settings.checkpoints, **found})
+
+
+def open_inputs(settings: EvalSettings) -> tuple[list, dict, dict[str, str], dict[str, str]]:
+    """What a run reads before its episodes: (the opened datasets (:func:`open_datasets`), the
+    loaded networks, every method that cannot run -> why (:func:`load_networks` and
+    :func:`unusable`), the unusable ones alone (method on viewspace -> why))."""
+    opened = open_datasets(settings)
+    networks, skipped = load_networks(settings, None)
+    skip_on = unusable(settings, networks, {vs: n for i, _ in opened for vs, n in i.sizes.items()})
+    return opened, networks, {**skipped, **skip_on}, skip_on

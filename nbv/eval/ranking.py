@@ -46,9 +46,7 @@ from nbv.eval.config import DisturbSettings, EvalSettings, names_setting
 from nbv.eval.inputs import (
     dataset_context,
     exclude_selection,
-    load_networks,
-    open_datasets,
-    unusable,
+    open_inputs,
     with_shipped_weights,
 )
 from nbv.eval.prepare import read_model
@@ -166,11 +164,7 @@ def ranking(settings: EvalSettings, seed: int = 0) -> list[dict]:
     if refused:
         raise ValueError(f"methods {refused} have no per-view scores; allowed: {', '.join(RANKED)}")
     settings = with_shipped_weights(settings)
-    opened = open_datasets(settings)
-    networks, skipped = load_networks(settings, None)
-    skipped.update(
-        unusable(settings, networks, {vs: n for i, _ in opened for vs, n in i.sizes.items()})
-    )
+    opened, networks, skipped, _ = open_inputs(settings)
     if skipped:
         raise ValueError("; ".join(f"{m}: {reason}" for m, reason in skipped.items()))
     scorer = load_scorer(settings.scorer_file()) if set(SCORED) & set(settings.methods) else None

@@ -13,6 +13,8 @@ import importlib
 from dataclasses import dataclass
 from typing import Any
 
+from nbv.utils.declared import look_up
+
 #: The trainers: ``python -m <trainer>``. ``train`` trains a network that scores every view of
 #: a viewspace from a cloud and the view state (``forward(cloud, view_state) -> (B, V)``).
 TRAINERS = ("train", "train.conditioned", "train.completion")
@@ -79,9 +81,7 @@ def network(name: str) -> Network:
     Raises:
         ValueError: no such network (the message lists the declared ones).
     """
-    if name not in NETWORKS:
-        raise ValueError(f"unknown network {name!r}; declared: {', '.join(NETWORKS)}")
-    return NETWORKS[name]
+    return look_up(NETWORKS, name, "network", "declared")
 
 
 def _attribute(path: str) -> Any:

@@ -66,18 +66,20 @@ class MethodContext:
     completion: Completion | None = field(default=None, compare=False, repr=False)
 
 
+def _given(value, what: str, field_name: str, shipped: str):
+    if value is None:
+        raise ValueError(f"no {what} given (MethodContext.{field_name}; the shipped one: "
+                         f"nbv.scan.shipped.{shipped})")  # fmt: skip
+    return value
+
+
 def completion_of(ctx: MethodContext) -> Completion:
     """The context's completion.
 
     Raises:
         ValueError: the context has none.
     """
-    if ctx.completion is None:
-        raise ValueError(
-            "no completion network given (MethodContext.completion; the shipped one: "
-            "nbv.scan.shipped.ShippedCompletion)"
-        )
-    return ctx.completion
+    return _given(ctx.completion, "completion network", "completion", "ShippedCompletion")
 
 
 def scorer_of(ctx: MethodContext) -> GainScorer:
@@ -86,12 +88,7 @@ def scorer_of(ctx: MethodContext) -> GainScorer:
     Raises:
         ValueError: the context has none.
     """
-    if ctx.scorer is None:
-        raise ValueError(
-            "no learned score given (MethodContext.scorer; the shipped one: "
-            "nbv.scan.shipped.shipped_scorer)"
-        )
-    return ctx.scorer
+    return _given(ctx.scorer, "learned score", "scorer", "shipped_scorer")
 
 
 @dataclass(frozen=True)

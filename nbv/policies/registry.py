@@ -14,6 +14,7 @@ from collections.abc import Iterable
 
 from nbv.policies import builders
 from nbv.policies.method import CHECKS, Method
+from nbv.utils.declared import look_up
 
 RANDOM = Method(
     "random",
@@ -295,9 +296,7 @@ def method(name: str) -> Method:
     Raises:
         ValueError: no such method (the message lists the registered ones).
     """
-    if name not in METHODS:
-        raise ValueError(f"unknown method {name!r}; registered: {', '.join(METHODS)}")
-    return METHODS[name]
+    return look_up(METHODS, name, "method", "registered")
 
 
 def networks_of(methods: Iterable[str]) -> tuple[str, ...]:

@@ -6,6 +6,8 @@
 * :mod:`~nbv.utils.seeding`: generators derived from a seed and names (CRC-32).
 * :mod:`~nbv.utils.bits`: popcount of packed bit arrays.
 * :mod:`~nbv.utils.selection`: the best unvisited view (masked argmax).
+* :mod:`~nbv.utils.declared`: a name looked up in a table of declarations (methods, networks,
+  mesh sources), refused with the declared names.
 
 The other modules:
 
