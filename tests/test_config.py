@@ -211,6 +211,9 @@ def test_shared_groups_write_a_value_once():
         ("train", "model.net.k=many", "model.net.k='many': must be an integer"),
         ("eval", "setcover.dilate=maybe", "setcover.dilate='maybe': must be true or false"),
         ("eval", "start_views=abc", "start_views='abc': must be a list"),
+        # The keys renamed by issue 55 name their new key.
+        ("eval", "hull.dilate=true", "hull: renamed setcover"),
+        ("plan", "ig.resolution=0.01", "ig: renamed infogain"),
         ("bench", "network=sometimes", "network='sometimes': must be true or false"),
         ("train_conditioned", "net.view_channels=wide", "net.view_channels='wide': must be a "
                                                         "list"),
@@ -242,9 +245,6 @@ def test_hydra_refuses_unknown_keys_and_wrong_types_naming_the_key(name, overrid
             "setcover.simulation='guess': must be one of analytic",
         ),
         ("eval", "+setcover.radius=2", "setcover.radius: unknown key; allowed: n_samp, simulation"),
-        # The keys renamed by issue 55 name their new key.
-        ("eval", "hull.dilate=true", "hull: renamed setcover"),
-        ("plan", "ig.resolution=0.01", "ig: renamed infogain"),
         ("bench", "checkpoint=/nowhere/best.pt", "checkpoint='/nowhere/best.pt': no such file"),
         ("train_conditioned", "net.head_channels=[0]", "net.head_channels=[0]: must be a non-"),
         ("train_conditioned", "epochs=0", "epochs=0: must be an integer >= 1"),
@@ -359,3 +359,16 @@ def test_the_job_log_gets_the_info_messages_and_stdout_stays_clean(tmp_path):
     assert "[nbv.dataset.generator][INFO]" in log and "1/1 models (1 made now" in log
     assert "1/1 models" in done.stderr and done.stdout == ""
     assert (tmp_path / "run" / ".hydra" / "config.yaml").exists()
+
+
+def test_a_saved_setting_under_a_renamed_key_names_the_new_key():
+    from nbv.scan.settings import ScanSettings
+    from nbv.utils.fields import ConfigError
+    from nbv.utils.settings_values import replaced
+
+    # A planner.json saved before issue 55 holds hull: and ig:.
+    for old, new in (("hull", "setcover"), ("ig", "infogain")):
+        with pytest.raises(ConfigError, match=f"^{old}: renamed {new}$"):
+            replaced(ScanSettings(), {old: {}})
+    with pytest.raises(ConfigError, match="colour: unknown key; allowed: "):
+        replaced(ScanSettings(), {"colour": "red"})

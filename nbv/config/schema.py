@@ -25,7 +25,7 @@ from omegaconf.errors import (
 
 # Defined with the fields that raise it (the library's settings raise it too); the entry points
 # import it from here.
-from nbv.utils.fields import ConfigError
+from nbv.utils.fields import ConfigError, renamed_line
 
 
 def names(value: Any, key: str) -> tuple[str, ...]:
@@ -178,21 +178,6 @@ _EXPECTED = (
 
 def _field_names(kind: Any) -> list[str]:
     return [f.name for f in dataclasses.fields(kind)] if dataclasses.is_dataclass(kind) else []
-
-
-#: Config keys that were renamed: old -> new (docs/journal.md, "Renames of the third
-#: restructuring"). An old key is refused with one line naming the new one.
-RENAMED_KEYS = {"hull": "setcover", "ig": "infogain"}
-
-
-def renamed_line(key: str) -> str | None:
-    """The refusal of a key path under a renamed key (``hull.dilate: renamed: give
-    setcover.dilate``); None for any other key."""
-    head, _, rest = str(key).partition(".")
-    if head not in RENAMED_KEYS:
-        return None
-    new = RENAMED_KEYS[head]
-    return f"{key}: renamed: give {new}.{rest}" if rest else f"{key}: renamed {new}"
 
 
 def _omegaconf_line(err: OmegaConfBaseException) -> str:

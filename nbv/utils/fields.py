@@ -63,6 +63,21 @@ class ConfigError(ValueError):
     """A setting that cannot be used; the message names the key and what is allowed."""
 
 
+#: Config keys that were renamed: old -> new (docs/journal.md, "Renames of the third
+#: restructuring"). An old key is refused with one line naming the new one.
+RENAMED_KEYS = {"hull": "setcover", "ig": "infogain"}
+
+
+def renamed_line(key: str) -> str | None:
+    """The refusal of a key path under a renamed key (``hull.dilate: renamed: give
+    setcover.dilate``); None for any other key."""
+    head, _, rest = str(key).partition(".")
+    if head not in RENAMED_KEYS:
+        return None
+    new = RENAMED_KEYS[head]
+    return f"{key}: renamed: give {new}.{rest}" if rest else f"{key}: renamed {new}"
+
+
 def setting(
     default: Any = dataclasses.MISSING,
     *,

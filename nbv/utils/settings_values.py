@@ -19,7 +19,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from nbv.utils.fields import ConfigError, check, fields_of, key_of
+from nbv.utils.fields import ConfigError, check, fields_of, key_of, renamed_line
 
 
 def union_args(kind: Any) -> tuple[Any, ...] | None:
@@ -136,7 +136,10 @@ def replaced(obj: Any, overrides: Mapping[str, Any], prefix: str = "") -> Any:
     for key, value in overrides.items():
         f = by_key.get(key)
         if f is None:
-            raise ConfigError(f"{prefix}{key}: unknown key; allowed: {', '.join(by_key)}")
+            renamed = None if prefix else renamed_line(key)
+            raise ConfigError(
+                renamed or f"{prefix}{key}: unknown key; allowed: {', '.join(by_key)}"
+            )
         current = getattr(obj, f.name)
         if isinstance(value, Mapping) and is_settings(type(current)):
             changes[f.name] = replaced(current, value, f"{prefix}{key}.")
