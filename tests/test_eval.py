@@ -30,16 +30,16 @@ from nbv.eval.config import (
 from nbv.eval.disturb import auc_changes, disturbed, permuted_state, random_ball
 from nbv.eval.evaluate import evaluate, run
 from nbv.eval.inputs import EvalDataError
-from nbv.eval.metric_tables import (
-    episode_values,
-    metrics_tables,
-    paired_metric,
-    summaries,
-    tie_lines,
-)
+from nbv.eval.metric_tables import metrics_tables, tie_lines
 from nbv.eval.prepare import prepare_meshes
 from nbv.eval.protocol import episode_rng
-from nbv.eval.statistics import groups
+from nbv.eval.statistics import (
+    episode_values,
+    groups,
+    paired_metric,
+    run_statistics,
+    summaries,
+)
 from nbv.eval.timing import PAPER_TIMES, paper_ratios, timing_table
 from nbv.geometry.reconstruction_metrics import cloud_scores
 from nbv.geometry.scores import coverage_from_bits
@@ -235,7 +235,8 @@ def test_the_metric_tables_pair_against_spread_and_count_censored_episodes(tiny,
         )
         assert diff.mean == pytest.approx(want) and diff.n == 2 * len(STARTS)
         assert diff.low <= diff.mean <= diff.high
-    lines = "\n".join(metrics_tables(ev.records, ["unseen"], ["original"], 10, seed=0))
+    stats = run_statistics(ev.records, 10)
+    lines = "\n".join(metrics_tables(stats, ["unseen"], ["original"], 10, seed=0))
     assert "## The metrics minus spread" in lines and "## The metrics minus random" not in lines
     final = paired_metric(values, a, b, "final_coverage", seed=0)
     assert f"| oracle | {final.text(3)} |" in lines
@@ -253,12 +254,11 @@ def test_spread_ties_are_reported_when_recorded(tiny, tmp_path):
     ev = evaluate(tiny_settings(tiny, tmp_path, methods=("spread",), viewspaces=("original",),
                                 checks=(), random_repeats=1))  # fmt: skip
     counted = [replace(r, counts={"decisions": 9, "ties": 3}) for r in ev.records]
-    lines = tie_lines(counted, ["unseen"], ["original"], 10)
+    lines = tie_lines(run_statistics(counted, 10), ["unseen"], ["original"])
     n = len(counted)
     assert f"| unseen | original | {n} | {3 * n} | {9 * n} | 33.3 |" in lines
-    assert (
-        tie_lines([replace(r, counts={}) for r in ev.records], ["unseen"], ["original"], 10) == []
-    )
+    bare = run_statistics([replace(r, counts={}) for r in ev.records], 10)
+    assert tie_lines(bare, ["unseen"], ["original"]) == []
 
 
 def test_oracle_leads_at_the_second_view_in_the_run(full_run):

@@ -22,9 +22,14 @@ import matplotlib.pyplot as plt  # noqa: E402 - the backend must be chosen first
 import numpy as np  # noqa: E402
 
 from nbv.eval.disturb import auc_changes  # noqa: E402
-from nbv.eval.metric_tables import episode_values, summaries  # noqa: E402
 from nbv.eval.metrics import plot_panels  # noqa: E402
-from nbv.eval.statistics import groups, method_rank, order_methods  # noqa: E402
+from nbv.eval.statistics import (  # noqa: E402
+    episode_values,
+    groups,
+    method_rank,
+    order_methods,
+    summaries,
+)
 from nbv.policies.registry import GEOMETRIC, METHODS, ORACLE  # noqa: E402
 from nbv.utils.atomic import save_figure
 

@@ -22,11 +22,10 @@ from nbv.eval.metric_tables import (
 )
 from nbv.eval.results_files import write_csv, write_json
 from nbv.eval.statistics import (
-    episode_means,
-    groups,
     method_rank,
     order_methods,
     paired_from_means,
+    run_statistics,
 )
 from nbv.eval.tables import category_tables, curve_tables, fmt, method_table
 from nbv.eval.timing import COLUMNS, PAPER_TIMES, paper_ratios, timing_table
@@ -64,10 +63,10 @@ def _minus_base(means, base: str, others, datasets, viewspaces, seed: int, what:
     return method_table(others, datasets, viewspaces, cell)
 
 
-def baseline_tables(records, methods, datasets, viewspaces, seed: int) -> list[str]:
-    """Every method minus spread and minus random, paired over the same episodes."""
+def baseline_tables(means: dict, methods, datasets, viewspaces, seed: int) -> list[str]:
+    """Every method minus spread and minus random, paired over the same episodes (``means``:
+    :func:`~nbv.eval.statistics.episode_means` of the undisturbed episodes)."""
     lines = []
-    means = episode_means([r for r in records if r.check is None])
     for base in (SPREAD.name, RANDOM.name):
         others = [m for m in methods if m != base]
         if base in methods and others:
@@ -83,13 +82,12 @@ def baseline_tables(records, methods, datasets, viewspaces, seed: int) -> list[s
     return lines
 
 
-def vig_table(records, methods, datasets, viewspaces, seed: int) -> list[str]:
+def vig_table(means: dict, methods, datasets, viewspaces, seed: int) -> list[str]:
     """The AUC of the VIG curve of every method made to raise VIG (the registry's ``score``),
     minus random's, paired over the same episodes; [] without random or such a method."""
     vig = [m for m in methods if m in METHODS and METHODS[m].score == "vig"]
     if RANDOM.name not in methods or not vig:
         return []
-    means = episode_means([r for r in records if r.check is None])
     return [
         "",
         f"## VIG-AUC minus {RANDOM.name}, paired over the same episodes",
@@ -219,14 +217,13 @@ def _header(evaluation, methods: list[str]) -> list[str]:
     return lines
 
 
-def _replan_section(records: list, methods: list[str], datasets: list[str],
+def _replan_section(means: dict, methods: list[str], datasets: list[str],
                     viewspaces: list[str], seed: int) -> list[str]:  # fmt: skip
     """Replanning minus one-shot set cover, paired, when both ran ([] otherwise)."""
     if not {HULL_SCO.name, HULL_SCO_REPLAN.name} <= set(methods):
         return []
     lines = ["", "## Replanning after every view vs one-shot convex-hull set cover", ""]
     rows = []
-    means = episode_means([r for r in records if r.check is None])
     for d in datasets:
         for vs in viewspaces:
             diff = paired_from_means(
@@ -262,7 +259,7 @@ def _disturbance_sections(records: list, s) -> list[str]:
     )
 
 
-def _timing_section(records: list, methods: list[str], n_views: int) -> list[str]:
+def _timing_section(records: list, stats, methods: list[str], n_views: int) -> list[str]:
     """Seconds per episode and stage (the paper's Table 1), beside the paper's, and per
     decision."""
     times = timing_table(records)
@@ -288,7 +285,7 @@ def _timing_section(records: list, methods: list[str], n_views: int) -> list[str
             for c, ratio in r.items():
                 rows.append([m, c, fmt(PAPER_TIMES[m][c], 2), fmt(times[m][c], 4), fmt(ratio, 1)])
         lines += md_table(["method", "stage", "paper s", "our s", "paper / ours"], rows)
-    return lines + decision_table(records, methods, n_views)
+    return lines + decision_table(stats, methods)
 
 
 def _notes_section(records: list) -> list[str]:
@@ -308,7 +305,8 @@ def report_body(evaluation) -> str:
     """The text of ``report.md`` but its plots (the costly part: every table)."""
     s = evaluation.settings
     records = evaluation.records
-    g = groups(records)
+    stats = run_statistics(records, s.n_views)
+    g = stats.groups
     datasets = [info.name for info in evaluation.datasets]
     viewspaces = list(s.viewspaces)
     methods = order_methods(r.method for r in records if r.check is None)
@@ -326,10 +324,10 @@ def report_body(evaluation) -> str:
         lambda m, d, vs: g[(d, vs, m, None)]["auc_ci"].text(3, signed=False)
         if (d, vs, m, None) in g else "",
     )  # fmt: skip
-    lines += baseline_tables(records, methods, datasets, viewspaces, s.seed)
+    lines += baseline_tables(stats.means, methods, datasets, viewspaces, s.seed)
     lines += filler_table(g, methods, datasets, viewspaces)
-    lines += tie_lines(records, datasets, viewspaces, s.n_views)
-    lines += metrics_tables(records, datasets, viewspaces, s.n_views, s.seed)
+    lines += tie_lines(stats, datasets, viewspaces)
+    lines += metrics_tables(stats, datasets, viewspaces, s.n_views, s.seed)
     lines += ["", "## Mean coverage after each view", ""]
     lines += curve_tables(g, datasets, viewspaces, s.n_views, "coverage")
     lines += [
@@ -341,12 +339,12 @@ def report_body(evaluation) -> str:
         "views capture. Models with a flat ground truth are left out (their VIG is undefined).",
     ]
     lines += curve_tables(g, datasets, viewspaces, s.n_views, "vig")
-    lines += vig_table(records, methods, datasets, viewspaces, s.seed)
+    lines += vig_table(stats.means, methods, datasets, viewspaces, s.seed)
     lines += ["", "## AUC per category", ""]
     lines += category_tables(records, datasets, viewspaces)
-    lines += _replan_section(records, methods, datasets, viewspaces, s.seed)
+    lines += _replan_section(stats.means, methods, datasets, viewspaces, s.seed)
     lines += _disturbance_sections(records, s)
-    lines += _timing_section(records, methods, s.n_views)
+    lines += _timing_section(records, stats, methods, s.n_views)
     lines += ["", "## The paper's claims, measured", ""]
     lines += claims(evaluation)
     lines += _notes_section(records)

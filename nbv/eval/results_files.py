@@ -19,15 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from nbv.eval.metric_tables import (
-    DECISION_STAGES,
-    episode_values,
-    summaries,
-)
 from nbv.eval.metrics import REACH_FRACTIONS, mean_keys
 from nbv.eval.statistics import (
+    DECISION_STAGES,
+    episode_values,
     groups,
     method_rank,
+    summaries,
 )
 from nbv.policies.registry import (
     METHODS,
