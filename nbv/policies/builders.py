@@ -74,19 +74,19 @@ def matched(name: str) -> Builder:
 
 def conditioned(name: str) -> Builder:
     """A fresh policy of the viewspace-conditioned checkpoint of method ``name``, with a fresh
-    occupancy map of the run's ``ig`` settings (read only by a network of map features; an
+    occupancy map of the run's ``infogain`` settings (read only by a network of map features; an
     unused one costs nothing: its map is made on its first update)."""
-    return lambda ctx, rng: ctx.networks[name].fresh(information_gain(ctx, rng))
+    return lambda ctx, rng: ctx.networks[name].fresh(infogain(ctx, rng))
 
 
-def hull_policy(
+def setcover_policy(
     ctx: MethodContext,
     rng: np.random.Generator,
     sph: bool = False,
     probes: bool = False,
     replan: bool = False,
 ) -> SetCoverPolicy:
-    """The convex-hull set cover of the run's ``hull`` settings: on the signature's hull with
+    """The convex-hull set cover of the run's ``setcover`` settings: on the signature's hull with
     ``sph``, after ``setcover.probes`` random views with ``probes``, replanned every view with
     ``replan``."""
     kind = SetCoverReplanPolicy if replan else SetCoverPolicy
@@ -101,9 +101,9 @@ def hull_policy(
     )
 
 
-def hull(sph: bool = False, probes: bool = False, replan: bool = False) -> Builder:
-    """The builder of :func:`hull_policy` with these options."""
-    return lambda ctx, rng: hull_policy(ctx, rng, sph=sph, probes=probes, replan=replan)
+def setcover(sph: bool = False, probes: bool = False, replan: bool = False) -> Builder:
+    """The builder of :func:`setcover_policy` with these options."""
+    return lambda ctx, rng: setcover_policy(ctx, rng, sph=sph, probes=probes, replan=replan)
 
 
 def two_stage(leader: str, sph: bool, matched: bool = False) -> Builder:
@@ -115,19 +115,19 @@ def two_stage(leader: str, sph: bool, matched: bool = False) -> Builder:
         network = loaded(ctx, leader)
         if matched:
             network = MatchedNetworkPolicy(network, original_viewspace())
-        return NetworkThenHullPolicy(network, hull_policy(ctx, rng, sph=sph),
+        return NetworkThenHullPolicy(network, setcover_policy(ctx, rng, sph=sph),
                                      ctx.setcover.network_views)  # fmt: skip
 
     return build
 
 
-def information_gain(ctx: MethodContext, rng: np.random.Generator) -> InfoGainPolicy:
-    """Volumetric information gain of the run's ``ig`` settings (candidate voxels shared)."""
+def infogain(ctx: MethodContext, rng: np.random.Generator) -> InfoGainPolicy:
+    """Volumetric information gain of the run's ``infogain`` settings (candidate voxels shared)."""
     return InfoGainPolicy(ctx.infogain, ctx.intrinsics, traced=ctx.traced)
 
 
-def information_gain_by(metric: str) -> Builder:
-    """:func:`information_gain` with the run's ``ig`` settings but ``metric``."""
+def infogain_by(metric: str) -> Builder:
+    """:func:`infogain` with the run's ``infogain`` settings but ``metric``."""
     return lambda ctx, rng: InfoGainPolicy(
         dataclasses.replace(ctx.infogain, metric=metric), ctx.intrinsics, traced=ctx.traced
     )
@@ -135,7 +135,7 @@ def information_gain_by(metric: str) -> Builder:
 
 def hull_then_gain(ctx: MethodContext, rng: np.random.Generator) -> Policy:
     """The one-shot hull plan's covering picks, then information gain."""
-    return HullThenGainPolicy(hull_policy(ctx, rng), information_gain(ctx, rng))
+    return HullThenGainPolicy(setcover_policy(ctx, rng), infogain(ctx, rng))
 
 
 def learned_gain(ctx: MethodContext, rng: np.random.Generator) -> Policy:

@@ -114,21 +114,21 @@ VCNBV_MAP = Method(
 HULL_SCO = Method(
     "hull_sco",
     "convex-hull set cover, one-shot from the start view's cloud",
-    builders.hull(),
+    builders.setcover(),
     checks=("random_hull", "position_noise"),
     geometric=True,
 )
 HULL_SCO_SPH = Method(
     "hull_sco_sph",
     "convex-hull set cover on the hull of the cloud's spherical signature",
-    builders.hull(sph=True),
+    builders.setcover(sph=True),
     checks=("position_noise",),
     geometric=True,
 )
 HULL_SCO_PROBES = Method(
     "hull_sco_probes",
     "hull_sco after `setcover.probes` random probe views",
-    builders.hull(probes=True),
+    builders.setcover(probes=True),
     geometric=True,
 )
 VIG_HULL_SCO = Method(
@@ -160,13 +160,13 @@ VIG_HULL_SCO_SPH = Method(
 HULL_SCO_REPLAN = Method(
     "hull_sco_replan",
     "convex-hull set cover replanned on the whole cloud after every view",
-    builders.hull(replan=True),
+    builders.setcover(replan=True),
     geometric=True,
 )
 IG = Method(
     "ig",
     "volumetric information gain on an occupancy map of the captured views, replanned every view",
-    builders.information_gain,
+    builders.infogain,
     checks=("position_noise",),
     geometric=True,
 )
@@ -189,14 +189,14 @@ IG_AREA_FACTOR = Method(
     "ig_area_factor",
     "ig with Vasquez-Gomez et al.'s Area Factor: a view is best when a set share of its rays "
     "meets the captured surface and the unknown layer around it",
-    builders.information_gain_by("area_factor"),
+    builders.infogain_by("area_factor"),
     checks=("position_noise",),
     geometric=True,
 )
 IG_PROXIMITY = Method(
     "ig_proximity",
     "ig with Proximity Count: unknown voxels weighted by their closeness to the captured surface",
-    builders.information_gain_by("proximity_count"),
+    builders.infogain_by("proximity_count"),
     checks=("position_noise",),
     geometric=True,
 )

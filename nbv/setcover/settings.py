@@ -1,4 +1,4 @@
-"""The set cover's settings (``hull:`` in the configs), shared by the plan, its policies and the
+"""The set cover's settings (``setcover:`` in the configs), shared by the plan, its policies and the
 configs."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ SIMULATIONS = ("analytic", "raycast")
 
 @dataclass(frozen=True)
 class SetCoverSettings:
-    """How the convex-hull set cover plans (``hull:`` in ``conf/eval.yaml``).
+    """How the convex-hull set cover plans (``setcover:`` in ``conf/eval.yaml``).
 
     Attributes:
         n_samp: points drawn on the hull (the paper's 16384).
