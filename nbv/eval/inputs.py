@@ -73,9 +73,9 @@ def _spread(keys: list[str], categories: list[str]) -> list[str]:
 
 
 def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
-    """Open (or prepare) each selected dataset and pick its models.
-
-    A viewspace the dataset lacks is rendered for its models (once, cached:
+    """Open (or prepare) each selected dataset and pick its models, in four steps a dataset:
+    where it is (prepared from a mesh source's files when it is one), opened, its models, and
+    its viewspaces (one it lacks is rendered for its models, once, cached:
     :func:`nbv.eval.prepare.rendered_viewspaces`).
 
     Raises:
@@ -83,57 +83,71 @@ def open_datasets(settings: EvalSettings) -> list[tuple[DatasetInfo, Dataset]]:
             a start view outside a viewspace.
     """
     out = []
-    prepared = prepared_datasets()
     for name in settings.datasets:
-        failures: list[tuple[str, str]] = []
-        if name in prepared:
-            source = MESH_SOURCES[prepared[name]]
-            root = source.installed() if source.installed else Path(settings.mesh_dir)
-            path, failures = prepare_meshes(root, settings.prepare, settings.progress, source.name)
-        else:
-            path = Path(settings.data_dir)
+        path, failures = _located(name, settings)
         try:
             ds = nbv.dataset.open(path, eps=settings.prepare.eps)
         except ValueError as err:
             raise EvalDataError(f"dataset={name} (data_dir={str(path)!r}): {err}") from None
-        if name in prepared:
-            keys = ds.keys()
-        else:
-            wanted = UNSEEN_CATEGORIES if name == "unseen" else TRAIN_CATEGORIES
-            keys = [k for k in ds.keys(split="test") if ds.index[k][1] in wanted]
-        if not keys:
-            which = (
-                "models"
-                if name in prepared
-                else (
-                    f"test-split models of the 8 {'unseen' if name == 'unseen' else 'training'} "
-                    "categories"
-                )
-            )
-            raise EvalDataError(
-                f"dataset={name}: {path} holds no {which} (categories there: {ds.categories})"
-            )
-        keys = _spread(keys, [ds.index[k][1] for k in keys])[: settings.limit]
-        sizes = {vs: len(ds.viewspaces[vs]) for vs in settings.viewspaces if vs in ds.viewspaces}
-        lacking = [vs for vs in settings.viewspaces if vs not in ds.viewspaces]
-        rendered = None
-        if lacking:
-            text = ds.attrs.get("config")
-            try:
-                rendered = rendered_viewspaces(path, json.loads(text) if text else {}, lacking,
-                                               keys, Path(settings.prepare.dir),
-                                               settings.progress)  # fmt: skip
-                extra = nbv.dataset.open(rendered, eps=settings.prepare.eps)
-            except ValueError as err:
-                raise EvalDataError(f"viewspace={','.join(lacking)}: {err}") from None
-            sizes.update({vs: len(extra.viewspaces[stored_name(vs)]) for vs in lacking})
-        for vs, n in sizes.items():
-            bad = [s for s in settings.start_views if s >= n]
-            if bad:
-                raise EvalDataError(f"start_views {bad} are outside viewspace {vs} (0..{n - 1})")
+        keys = _models(name, ds, path, settings.limit)
+        sizes, rendered = _viewspaces(path, ds, keys, settings)
         failures += [f for f in ds.failures if f not in failures]
         out.append((DatasetInfo(name, path, keys, failures, sizes=sizes, rendered=rendered), ds))
     return out
+
+
+def _located(name: str, settings: EvalSettings) -> tuple[Path, list[tuple[str, str]]]:
+    """Where dataset ``name`` is: a prepared mesh source's cache (made when missing; with the
+    meshes it could not make), else ``data_dir``."""
+    prepared = prepared_datasets()
+    if name not in prepared:
+        return Path(settings.data_dir), []
+    source = MESH_SOURCES[prepared[name]]
+    root = source.installed() if source.installed else Path(settings.mesh_dir)
+    return prepare_meshes(root, settings.prepare, settings.progress, source.name)
+
+
+def _models(name: str, ds: Dataset, path: Path, limit: int | None) -> list[str]:
+    """The models of dataset ``name`` an evaluation runs: a prepared dataset's all, the test
+    split of the unseen or the training categories otherwise; spread over the categories and
+    cut at ``limit``."""
+    if name in prepared_datasets():
+        keys, which = ds.keys(), "models"
+    else:
+        wanted = UNSEEN_CATEGORIES if name == "unseen" else TRAIN_CATEGORIES
+        keys = [k for k in ds.keys(split="test") if ds.index[k][1] in wanted]
+        which = (f"test-split models of the 8 {'unseen' if name == 'unseen' else 'training'} "
+                 "categories")  # fmt: skip
+    if not keys:
+        raise EvalDataError(
+            f"dataset={name}: {path} holds no {which} (categories there: {ds.categories})"
+        )
+    return _spread(keys, [ds.index[k][1] for k in keys])[:limit]
+
+
+def _viewspaces(
+    path: Path, ds: Dataset, keys: list[str], settings: EvalSettings
+) -> tuple[dict[str, int], Path | None]:
+    """Each selected viewspace's size, and the dataset of the viewspaces ``ds`` lacks,
+    rendered for ``keys`` (None when it lacks none); every start view checked against them."""
+    sizes = {vs: len(ds.viewspaces[vs]) for vs in settings.viewspaces if vs in ds.viewspaces}
+    lacking = [vs for vs in settings.viewspaces if vs not in ds.viewspaces]
+    rendered = None
+    if lacking:
+        text = ds.attrs.get("config")
+        try:
+            config = json.loads(text) if text else {}
+            rendered = rendered_viewspaces(path, config, lacking, keys, Path(settings.prepare.dir),
+                                           settings.progress)  # fmt: skip
+            extra = nbv.dataset.open(rendered, eps=settings.prepare.eps)
+        except ValueError as err:
+            raise EvalDataError(f"viewspace={','.join(lacking)}: {err}") from None
+        sizes.update({vs: len(extra.viewspaces[stored_name(vs)]) for vs in lacking})
+    for vs, n in sizes.items():
+        bad = [s for s in settings.start_views if s >= n]
+        if bad:
+            raise EvalDataError(f"start_views {bad} are outside viewspace {vs} (0..{n - 1})")
+    return sizes, rendered
 
 
 def _whose(method: str, network: str) -> str:
