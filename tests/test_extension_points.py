@@ -77,7 +77,8 @@ def test_a_toy_metric_is_one_declaration_and_reaches_every_table(tiny, tmp_path,
     for e in episodes:
         assert e["metrics"]["toy_turns"] == np.count_nonzero(np.diff(e["views"]) < 0)
     report = (tmp_path / "out" / "report.md").read_text()
-    assert "| toy turns |" in report  # a column of the paired tables, as every paired metric
+    assert "| path | shortest path | toy turns |" in report  # the table of means
+    assert "| F-score 2 eps | path | toy turns |" in report  # the paired tables
     with open(tmp_path / "out" / "summary.csv", newline="") as handle:
         rows = list(csv.DictReader(handle))
     oracle = [r for r in rows if r["method"] == "oracle" and not r["check"]]

@@ -11,7 +11,7 @@ from collections import defaultdict
 
 import numpy as np
 
-from nbv.eval.metrics import REACH_FRACTIONS, paired_metrics
+from nbv.eval.metrics import Metric, paired_metrics, tabled_metrics
 from nbv.eval.statistics import (
     DECISION_STAGES,
     MAP_STAGES,
@@ -28,6 +28,15 @@ from nbv.utils.markdown import md_table
 
 def _censored(count: float) -> str:
     return f"{count:.0f}" if float(count).is_integer() else f"{count:.1f}"
+
+
+def _mean_cell(metric: Metric, s: dict) -> str:
+    """A metric's cell in the table of means: a censored one's mean over the episodes that
+    reach it, with how many never did in brackets."""
+    if metric.aggregate == "censored":
+        count = s[f"censored_{metric.key.rsplit('_', 1)[1]}"]
+        return f"{fmt(s[metric.key], metric.digits)} ({_censored(count)})"
+    return fmt(s[metric.key], metric.table_digits or metric.digits)
 
 
 def metrics_tables(
@@ -53,9 +62,8 @@ def metrics_tables(
         "2 eps. Path: the great-circle arcs between consecutive cameras at the viewspace's "
         "radius; shortest: the shortest path from the start view through the same views.",
     ]
-    header = ["method", "episodes", "final coverage", "views to 90 %", "views to 95 %",
-              "Chamfer acc.", "Chamfer comp.", "Chamfer", "F-score eps", "F-score 2 eps",
-              "path", "shortest path"]  # fmt: skip
+    tabled = tabled_metrics()
+    header = ["method", "episodes", *(m.title for m in tabled)]
     for d in datasets:
         for vs in viewspaces:
             keys = sorted((k for k in summary if k[0] == d and k[1] == vs),
@@ -65,14 +73,7 @@ def metrics_tables(
             rows = []
             for k in keys:
                 s = summary[k]
-                reach = [f"{fmt(s[f'views_to_{n}'], 2)} ({_censored(s[f'censored_{n}'])})"
-                         for n in REACH_FRACTIONS]  # fmt: skip
-                rows.append(
-                    [k[2], str(s["episodes"]), fmt(s["final_coverage"]), *reach,
-                     fmt(s["chamfer_accuracy"], 4), fmt(s["chamfer_completeness"], 4),
-                     fmt(s["chamfer"], 4), fmt(s["fscore_eps"]), fmt(s["fscore_2eps"]),
-                     fmt(s["path_length"], 2), fmt(s["shortest_path"], 2)]
-                )  # fmt: skip
+                rows.append([k[2], str(s["episodes"]), *(_mean_cell(m, s) for m in tabled)])
             lines += [f"\n**{d}, {vs} viewspace**\n"]
             lines += md_table(header, rows)
     for base in (SPREAD.name, RANDOM.name):

@@ -60,11 +60,13 @@ class Metric:
 
     Attributes:
         key: its key in an episode's ``metrics`` (results.json, the episode log, summary.csv).
-        title: its column title in the report's paired table.
+        title: its column title in the report's tables.
         digits: the digits it is written with.
         lower_better: a lower value is better (Chamfer distance, views to reach, path).
         paired: the report gives its paired differences against spread and random.
         aggregate: how it is aggregated over episodes (:data:`AGGREGATIONS`).
+        tabled: a column of the report's table of means.
+        table_digits: its digits in that table; None: ``digits``.
         panel: its panel's title in metrics.png; None: not drawn.
         compute: ``(model metrics, viewspace, views, coverage curve) -> value`` (a float, NaN
             where undefined); None for the metrics :meth:`ModelMetrics.episode` computes
@@ -77,6 +79,8 @@ class Metric:
     lower_better: bool = False
     paired: bool = False
     aggregate: str = "mean"
+    tabled: bool = True
+    table_digits: int | None = None
     panel: str | None = None
     compute: Callable[[ModelMetrics, str, list[int], list[float]], float] | None = None
 
@@ -97,18 +101,19 @@ class Metric:
 #: Every metric of an episode, in report order (the one place that declares them).
 METRICS: tuple[Metric, ...] = (
     Metric("final_coverage", "final coverage", paired=True, panel="final coverage"),
-    Metric("full_coverage", "full coverage"),
+    Metric("full_coverage", "full coverage", tabled=False),
     Metric("views_to_90", "views to 90 %", 2, True, paired=True, aggregate="censored",
            panel="views to 90 % (censored: n + 1)"),
     Metric("views_to_95", "views to 95 %", 2, True, paired=True, aggregate="censored"),
-    Metric("chamfer_accuracy", "Chamfer accuracy", 5, True),
-    Metric("chamfer_completeness", "Chamfer completeness", 5, True),
-    Metric("chamfer", "Chamfer", 5, True, paired=True, panel="Chamfer distance (lower: better)"),
-    Metric("precision_eps", "precision eps"),
-    Metric("recall_eps", "recall eps"),
+    Metric("chamfer_accuracy", "Chamfer acc.", 4, True),
+    Metric("chamfer_completeness", "Chamfer comp.", 4, True),
+    Metric("chamfer", "Chamfer", 5, True, paired=True, table_digits=4,
+           panel="Chamfer distance (lower: better)"),
+    Metric("precision_eps", "precision eps", tabled=False),
+    Metric("recall_eps", "recall eps", tabled=False),
     Metric("fscore_eps", "F-score eps", paired=True),
-    Metric("precision_2eps", "precision 2 eps"),
-    Metric("recall_2eps", "recall 2 eps"),
+    Metric("precision_2eps", "precision 2 eps", tabled=False),
+    Metric("recall_2eps", "recall 2 eps", tabled=False),
     Metric("fscore_2eps", "F-score 2 eps", paired=True, panel="F-score at 2 eps"),
     Metric("path_length", "path", 2, True, paired=True, panel="camera path (lower: better)"),
     Metric("shortest_path", "shortest path", 2, True),
@@ -118,6 +123,11 @@ METRICS: tuple[Metric, ...] = (
 def paired_metrics() -> tuple[Metric, ...]:
     """The metrics with paired intervals in the report, in report order."""
     return tuple(m for m in METRICS if m.paired)
+
+
+def tabled_metrics() -> tuple[Metric, ...]:
+    """The columns of the report's table of means, in report order."""
+    return tuple(m for m in METRICS if m.tabled)
 
 
 def mean_keys() -> tuple[str, ...]:
