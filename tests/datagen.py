@@ -91,4 +91,4 @@ def make_tiny_dataset(out: Path, models: int = 2, keep_depth: bool = False) -> P
 
 
 #: The information-gain planner on the small camera: coarse voxels, 4-pixel background blocks.
-VOLUMETRIC = InfoGainSettings(resolution=0.04, columns=8, block=4)
+INFOGAIN = InfoGainSettings(resolution=0.04, columns=8, block=4)

@@ -7,7 +7,7 @@ import logging
 
 import numpy as np
 import pytest
-from datagen import VOLUMETRIC, make_tiny_dataset
+from datagen import INFOGAIN, make_tiny_dataset
 from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
@@ -149,7 +149,7 @@ def test_lockstep_episodes_take_the_views_of_one_at_a_time_episodes(dataset, met
         proto = ConditionedPolicy.from_checkpoint(shipped_weights(method))
 
         def fresh():
-            return proto.fresh(InfoGainPolicy(VOLUMETRIC, dataset.intrinsics))
+            return proto.fresh(InfoGainPolicy(INFOGAIN, dataset.intrinsics))
 
     alone = [run_episode(model, "original", s, fresh()).views for s in starts]
     episodes = [fresh() for _ in starts]

@@ -116,6 +116,13 @@ class ToyConfig:
     n_views: int = 33
     hidden: int = 8
 
+    def to_dict(self) -> dict:
+        return {"n_views": self.n_views, "hidden": self.hidden}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> ToyConfig:
+        return cls(**d)
+
 
 class ToyNet(torch.nn.Module):
     """A score per view from the cloud's mean and the view state."""
@@ -133,26 +140,25 @@ class ToyNet(torch.nn.Module):
 
 @pytest.mark.slow
 def test_a_toy_network_is_one_row_and_the_trainer_trains_it(tmp_path, monkeypatch):
-    from nbv.dataset.samples import load_samples
+    from nbv.policies.network import NetworkPolicy
     from train.config import ModelSettings, TrainSettings
-    from train.loop import fresh_training, train_epoch
+    from train.loop import run
 
     toy = Network("toy", "a linear toy", f"{__name__}:ToyConfig", f"{__name__}:ToyNet", "train")
     monkeypatch.setitem(NETWORKS, toy.name, toy)
-    dataset = make_train_dataset(tmp_path / "data")
     settings = TrainSettings(
-        dataset=dataset, out_dir=tmp_path / "run", fold=3, epochs=1, batch_size=8,
-        train_points=32, start_views=(1, 30), progress=False,
-        model=ModelSettings("toy", "points", {}, network="toy"),
+        dataset=make_train_dataset(tmp_path / "data"), out_dir=tmp_path / "run", fold=3,
+        epochs=1, batch_size=8, train_points=32, eval_points=64, start_views=(1, 30),
+        progress=False, model=ModelSettings("toy", "points", {}, network="toy"),
     )  # fmt: skip
-    model, optimizer, _ = fresh_training(settings, 33, torch.device("cpu"))
-    assert isinstance(model, ToyNet) and model.config == ToyConfig(n_views=33)
-    before = [p.detach().clone() for p in model.parameters()]
-    samples = load_samples(dataset, "coverage")
-    stats = train_epoch(model, optimizer, samples.select(np.arange(len(samples)) < 8), settings, 0,
-                        torch.device("cpu"))  # fmt: skip
-    assert np.isfinite(stats["train_loss"])
-    assert all(not torch.equal(a, b) for a, b in zip(before, model.parameters(), strict=True))
+    result = run(settings)
+    assert np.isfinite(result["last"]["train_loss"]) and "val_auc" in result["last"]
+    # Its checkpoint names it and loads as it: a policy of the evaluator, deciding.
+    policy = NetworkPolicy.from_checkpoint(tmp_path / "run" / "best.pt")
+    assert isinstance(policy.model, ToyNet) and policy.model.config == ToyConfig(n_views=33)
+    state = np.zeros(33, dtype=bool)
+    state[1] = True
+    assert 0 <= policy.decide(np.random.default_rng(0).random((100, 3)), state) < 33
     # A network of another trainer is refused by name, with the command that trains it.
     with pytest.raises(ValueError, match="model.network=completion: trained by python -m "
                                          "train.completion"):  # fmt: skip

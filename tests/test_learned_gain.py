@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from datagen import SMALL_CAMERA, VOLUMETRIC, make_tiny_dataset, make_train_dataset
+from datagen import INFOGAIN, SMALL_CAMERA, make_tiny_dataset, make_train_dataset
 from shapes import INTO_POCKET, cup, pocket_scene
 
 import nbv.dataset
@@ -76,7 +76,7 @@ def tiny(tmp_path_factory):
 
 
 def _map_after(model, order: list[int]) -> InfoGainPolicy:
-    policy = InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+    policy = InfoGainPolicy(INFOGAIN, SMALL_CAMERA)
     state = np.isin(np.arange(33), order)
     policy.update(EpisodeState(model.captured("original"), state, order))
     return policy
@@ -111,14 +111,14 @@ def _one_feature_scorer(name: str) -> GainScorer:
 
 def test_a_scorer_of_one_feature_plans_as_ig_or_as_spread(tiny):
     for start in (1, 10, 27):
-        ig = run_episode(tiny, "original", start, InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA))
+        ig = run_episode(tiny, "original", start, InfoGainPolicy(INFOGAIN, SMALL_CAMERA))
         learned = LearnedGainPolicy(
-            VOLUMETRIC, SMALL_CAMERA, scorer=_one_feature_scorer("unobserved_relative")
+            INFOGAIN, SMALL_CAMERA, scorer=_one_feature_scorer("unobserved_relative")
         )
         episode = run_episode(tiny, "original", start, learned)
         assert episode.views == ig.views
         assert learned.counts["planned"] == 9 and len(learned.last_gains) == 1
-        far = LearnedGainPolicy(VOLUMETRIC, SMALL_CAMERA,
+        far = LearnedGainPolicy(INFOGAIN, SMALL_CAMERA,
                                 scorer=_one_feature_scorer("angle_nearest"))  # fmt: skip
         assert (
             run_episode(tiny, "permuted", start, far).views
@@ -129,15 +129,15 @@ def test_a_scorer_of_one_feature_plans_as_ig_or_as_spread(tiny):
 def test_the_shipped_scorer_is_deterministic_and_needs_a_scorer(tiny):
     scorer = load_scorer(SHIPPED_SCORER)
     assert scorer.info["dataset_identity"] and scorer.info["selection_keys"]
-    loaded = LearnedGainPolicy.from_checkpoint(SHIPPED_SCORER, SMALL_CAMERA, VOLUMETRIC)
-    assert loaded.scorer.info == scorer.info and loaded.settings == VOLUMETRIC
+    loaded = LearnedGainPolicy.from_checkpoint(SHIPPED_SCORER, SMALL_CAMERA, INFOGAIN)
+    assert loaded.scorer.info == scorer.info and loaded.settings == INFOGAIN
     runs = [
-        run_episode(tiny, "permuted", 7, LearnedGainPolicy(VOLUMETRIC, SMALL_CAMERA, scorer=scorer))
+        run_episode(tiny, "permuted", 7, LearnedGainPolicy(INFOGAIN, SMALL_CAMERA, scorer=scorer))
         for _ in range(2)
     ]
     assert runs[0].views == runs[1].views and len(set(runs[0].views)) == 10
     with pytest.raises(ValueError, match="needs a scorer"):
-        run_episode(tiny, "original", 7, LearnedGainPolicy(VOLUMETRIC, SMALL_CAMERA))
+        run_episode(tiny, "original", 7, LearnedGainPolicy(INFOGAIN, SMALL_CAMERA))
 
 
 def test_scorer_file_round_trip_equals_the_torch_network(tmp_path):

@@ -9,7 +9,7 @@ import functools
 
 import numpy as np
 import pytest
-from datagen import SMALL_CAMERA, VOLUMETRIC, make_tiny_dataset
+from datagen import INFOGAIN, SMALL_CAMERA, make_tiny_dataset
 from tiny_nets import save_tiny_checkpoint
 
 import nbv.dataset
@@ -84,7 +84,7 @@ def all_policies(networks, seed: int = 0) -> dict:
             networks["signature"].fresh(), get_viewspace("original")
         ),
         "vcnbv": networks["directions"].fresh(),
-        "vcnbv_map": networks["directions_map"].fresh(InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA)),
+        "vcnbv_map": networks["directions_map"].fresh(InfoGainPolicy(INFOGAIN, SMALL_CAMERA)),
         "hull_sco": SetCoverPolicy(rng(seed), **hull),
         "hull_sco_sph": SetCoverPolicy(
             rng(seed),
@@ -110,18 +110,16 @@ def all_policies(networks, seed: int = 0) -> dict:
                 settings=SetCoverSettings(n_samp=2048, lmax=2),
             ),
         ),
-        "ig": InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA),
+        "ig": InfoGainPolicy(INFOGAIN, SMALL_CAMERA),
         "hull_ig": HullThenGainPolicy(
-            SetCoverPolicy(rng(seed), **hull), InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+            SetCoverPolicy(rng(seed), **hull), InfoGainPolicy(INFOGAIN, SMALL_CAMERA)
         ),
-        "ig_learned": LearnedGainPolicy(
-            VOLUMETRIC, SMALL_CAMERA, scorer=load_scorer(SHIPPED_SCORER)
-        ),
+        "ig_learned": LearnedGainPolicy(INFOGAIN, SMALL_CAMERA, scorer=load_scorer(SHIPPED_SCORER)),
         "ig_area_factor": InfoGainPolicy(
-            dataclasses.replace(VOLUMETRIC, metric="area_factor"), SMALL_CAMERA
+            dataclasses.replace(INFOGAIN, metric="area_factor"), SMALL_CAMERA
         ),
         "ig_proximity": InfoGainPolicy(
-            dataclasses.replace(VOLUMETRIC, metric="proximity_count"), SMALL_CAMERA
+            dataclasses.replace(INFOGAIN, metric="proximity_count"), SMALL_CAMERA
         ),
         "completion_hull_sco": CompletionHullPolicy(rng(seed), complete=_completer(), **hull),
         "completion_hull_sco_replan": CompletionHullReplanPolicy(
@@ -435,9 +433,9 @@ def test_state_cloud_is_what_the_captured_views_saw(model):
 
 
 def test_information_gain_is_deterministic_and_maps_each_view_once(model):
-    first = InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA)
+    first = InfoGainPolicy(INFOGAIN, SMALL_CAMERA)
     a = run_episode(model, "original", 3, first)
-    b = run_episode(model, "original", 3, InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA))
+    b = run_episode(model, "original", 3, InfoGainPolicy(INFOGAIN, SMALL_CAMERA))
     assert a.views == b.views
     # The last pick is made on the map of the 9 views before it; each went in once.
     assert first.integrated == a.views[:-1]
@@ -445,17 +443,17 @@ def test_information_gain_is_deterministic_and_maps_each_view_once(model):
     # Episodes sharing a run's traced views build the same map as a fresh trace of each view.
     shared: dict = {}
     for start in (3, 10):
-        run_episode(model, "original", start, InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA,
+        run_episode(model, "original", start, InfoGainPolicy(INFOGAIN, SMALL_CAMERA,
                                                                     traced=shared))  # fmt: skip
     kept = len(shared["views"])
-    again = InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA, traced=shared)
+    again = InfoGainPolicy(INFOGAIN, SMALL_CAMERA, traced=shared)
     assert run_episode(model, "original", 3, again).views == a.views
     assert len(shared["views"]) == kept  # all from the cache
     np.testing.assert_array_equal(again.occupancy.log_odds, first.occupancy.log_odds)
     # A disturbed cloud is another view: traced afresh.
     noisy = copy.deepcopy(model)
     noisy.views["original"].points += np.float32(0.01)
-    run_episode(noisy, "original", 3, InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA, traced=shared))
+    run_episode(noisy, "original", 3, InfoGainPolicy(INFOGAIN, SMALL_CAMERA, traced=shared))
     assert len(shared["views"]) > kept
 
 
@@ -467,7 +465,7 @@ def test_hull_then_gain_takes_the_plans_covering_picks_then_the_gains(model):
     assert 0 < len(covering) < len(plan)  # the hull is covered before the episode ends
     hybrid = HullThenGainPolicy(
         SetCoverPolicy(np.random.default_rng(7), **hull),
-        InfoGainPolicy(VOLUMETRIC, SMALL_CAMERA),
+        InfoGainPolicy(INFOGAIN, SMALL_CAMERA),
     )
     episode = run_episode(model, "original", 10, hybrid)
     assert episode.views[1 : 1 + len(covering)] == covering

@@ -35,7 +35,7 @@ from nbv.scan.shipped import resolve_weights, with_shipped
 from nbv.setcover.settings import SetCoverSettings
 
 
-def _context(hull: SetCoverSettings | None = None) -> MethodContext:
+def _context(setcover: SetCoverSettings | None = None) -> MethodContext:
     # Stand-ins for the networks' models: building a policy reads no weights (a PCNBV's number
     # of outputs only, which its views matched by direction check).
     pcnbv_model = SimpleNamespace(config=SimpleNamespace(n_views=33))
@@ -45,7 +45,8 @@ def _context(hull: SetCoverSettings | None = None) -> MethodContext:
         else NetworkPolicy(model=pcnbv_model, input=kind)
         for name, kind in NETWORK_INPUTS.items()
     }
-    return with_shipped(MethodContext(networks, hull or SetCoverSettings(), SMALL_CAMERA, 0.02, 7))
+    ctx = MethodContext(networks, setcover or SetCoverSettings(), SMALL_CAMERA, 0.02, 7)
+    return with_shipped(ctx)
 
 
 def test_every_method_builds_a_fresh_policy_of_its_kind():

@@ -87,19 +87,19 @@ class _Pool:
 
 
 def _pool(
-    model: ModelData, intrinsics: Intrinsics, volumetric: InfoGainSettings | None = None
+    model: ModelData, intrinsics: Intrinsics, infogain: InfoGainSettings | None = None
 ) -> _Pool:
-    """The pool of ``model``; with the map's ``volumetric`` settings, its map data too."""
+    """The pool of ``model``; with the map's ``infogain`` settings, its map data too."""
     views = [model.views[name] for name in VIEWSPACES]
     poses = np.concatenate([v.poses for v in views])
     points = [v.view_points(i) for v in views for i in range(len(v.poses))]
     grid, seen, rays = None, None, None
-    if volumetric is not None:
-        grid = volumetric.occupancy()
+    if infogain is not None:
+        grid = infogain.occupancy()
         tracer = OccupancyMap(grid)
-        seen = [tracer.captured_voxels(p, pose, intrinsics, volumetric.block)
+        seen = [tracer.captured_voxels(p, pose, intrinsics, infogain.block)
                 for p, pose in zip(points, poses, strict=True)]  # fmt: skip
-        rays = candidate_voxels(poses, intrinsics, volumetric.columns, grid)
+        rays = candidate_voxels(poses, intrinsics, infogain.columns, grid)
     return _Pool(
         directions=unit_directions(poses[:, :3, 3], np.float32),
         bits=np.concatenate([v.coverage for v in views]),
@@ -189,9 +189,9 @@ def _predict(model, samples: dict, batch_size: int) -> np.ndarray:
 
 
 def _validation_auc(
-    model, dataset, keys: list[str], settings: ConditionedSettings, volumetric: InfoGainSettings
+    model, dataset, keys: list[str], settings: ConditionedSettings, infogain: InfoGainSettings
 ) -> dict:
-    """Mean validation AUC per viewspace; a network of map features plays on ``volumetric``'s
+    """Mean validation AUC per viewspace; a network of map features plays on ``infogain``'s
     map."""
     policy = ConditionedPolicy(model, settings.eval_points)
     traced: dict = {}
@@ -200,7 +200,7 @@ def _validation_auc(
         curves = [
             run_episode(
                 dataset.model(key, (name,)), name, int(start),
-                policy.fresh(InfoGainPolicy(volumetric, dataset.intrinsics, traced=traced)),
+                policy.fresh(InfoGainPolicy(infogain, dataset.intrinsics, traced=traced)),
             ).coverage
             for key in keys
             for start in settings.start_views
@@ -259,8 +259,8 @@ def run(settings: ConditionedSettings) -> dict:
     held = ", ".join(settings.select_categories)
     log.info("%d training, %d validation models%s", len(train_keys), len(valid_keys),
              f" (of {held})" if held else "")  # fmt: skip
-    volumetric = InfoGainSettings()  # ig's defaults: the map of the map features
-    pooled = volumetric if settings.map_features else None
+    infogain = InfoGainSettings()  # ig's defaults: the map of the map features
+    pooled = infogain if settings.map_features else None
     t0 = time.perf_counter()
     pools = [_pool(dataset.model(k, VIEWSPACES), dataset.intrinsics, pooled)
              for k in train_keys]  # fmt: skip
@@ -298,7 +298,7 @@ def run(settings: ConditionedSettings) -> dict:
             "train_loss": float(np.mean(losses)),
             "train_spearman": spearman(train_pred, probe["target"], probe["view_state"]),
             "val_spearman": spearman(val_pred, val_samples["target"], val_samples["view_state"]),
-            **_validation_auc(model, dataset, valid_keys, settings, volumetric),
+            **_validation_auc(model, dataset, valid_keys, settings, infogain),
             "seconds": time.perf_counter() - t0,
         }
         by_model = spearman_by_model(val_pred, val_samples["target"], val_samples["view_state"],

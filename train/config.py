@@ -25,7 +25,7 @@ from nbv.geometry.viewspace import get_viewspace
 from nbv.models.config import PRECISIONS, PCNBVConfig
 from nbv.models.networks import NETWORKS
 from nbv.policies.episode import DEFAULT_START_VIEWS
-from nbv.utils.fields import at_least, check, fields_of, one_of, positive, setting
+from nbv.utils.fields import Allows, at_least, check, fields_of, one_of, positive, setting
 
 SCORES = ("coverage", "vig")
 #: The training losses (:mod:`train.losses`), named here so that settings load without torch.
@@ -94,12 +94,22 @@ class ModelSettings:
     name: str = "pcnbv"
     input: str = setting("points", allows=one_of(INPUTS))
     net: dict = setting(factory=dict, config=NetConfig, convert=_given, config_default={})
-    network: str = setting("pcnbv", allows=one_of(NETWORKS))
+    network: str = setting(
+        "pcnbv",
+        allows=Allows(
+            lambda v: v in NETWORKS and NETWORKS[v].trainer == "train",
+            "a declared network that python -m train trains (nbv/models/networks.py: pcnbv)",
+        ),
+    )
 
     def __post_init__(self) -> None:
-        trainer = NETWORKS[self.network].trainer if self.network in NETWORKS else "train"
-        if trainer != "train":
+        if self.network in NETWORKS and NETWORKS[self.network].trainer != "train":
+            trainer = NETWORKS[self.network].trainer
             raise ConfigError(f"model.network={self.network}: trained by python -m {trainer}")
+        if self.network not in NETWORKS:
+            raise ConfigError(
+                f"model.network={self.network!r}: not declared; declared: {', '.join(NETWORKS)}"
+            )
 
 
 @dataclass(frozen=True)
@@ -118,7 +128,7 @@ class TrainSettings:
         fold: 0..7 as above; -1 holds no category out and trains on all eight (the weights
             that ship: no held-out score, ``heldout.json`` is not written).
         score: the targets (``score.name``).
-        model: the network (``model.name``, ``model.input``, ``model.net``).
+        model: the network (``model.name``, ``model.input``, ``model.net``, ``model.network``).
         seed: seeds the network's initialisation and every draw of an epoch (with the epoch).
         epochs: training epochs. Four fit the 15-minute CPU budget of one fold on the default
             dataset (2 cores); raise it on a GPU.

@@ -168,4 +168,6 @@ def checkpoint_extra(settings: TrainSettings, identity: dict, lmax: int, device,
         "select": settings.select,
         # The models whose episodes chose this checkpoint: nbv.eval leaves them out.
         "selection_keys": selection_keys if settings.select == "valid" else [],
+        # The network, where it is not PCNBV (whose checkpoints never named it).
+        **({"network": settings.model.network} if settings.model.network != "pcnbv" else {}),
     }

@@ -5,6 +5,7 @@
 * :mod:`~nbv.assets.mesh_sources`: the one declaration of the mesh sources: name, licence,
   catalogue, installed copy, splits, the evaluator's dataset name.
 * :mod:`~nbv.assets.categories`: the one table of the 16 PC-NBV categories.
+* :mod:`~nbv.assets.weights`: the network weights and the learned score the package ships.
 * :mod:`~nbv.assets.synthetic`: procedural shapes imitating those categories, and their preview.
 
 The other modules:

@@ -49,7 +49,7 @@ class BenchEntry(Entry):
 
     def build(self, cfg: Any) -> BenchSettings:
         """The settings of a composed ``conf/bench.yaml``; ``checkpoint=null`` becomes the
-        registry's weights of PCNBV (:meth:`nbv.policies.registry.Method.weights`): fold 0's
+        weights of PCNBV (:func:`nbv.scan.shipped.resolve_weights`): fold 0's
         ``best.pt`` when it exists, else the shipped ones."""
         settings = super().build(cfg)
         if settings.checkpoint is None:

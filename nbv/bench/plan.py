@@ -40,14 +40,15 @@ def capture(views: list[np.ndarray]) -> tuple[int, np.ndarray]:
 
 
 def decide(method: str, view: int, points: np.ndarray, poses: np.ndarray, intrinsics,
-           hull: SetCoverSettings) -> int | list[int]:  # fmt: skip
+           setcover: SetCoverSettings) -> int | list[int]:  # fmt: skip
     """One decision of ``method`` after the capture ``(view, points)``, as nbv.plan makes it
     (the chair is normalised already: its frame is the planners'), on the state nbv.plan
     builds (:func:`nbv.policies.episode.captured_state`)."""
     parts = [points if v == view else np.zeros((0, 3)) for v in range(len(poses))]
     state = captured_state(poses, parts, [view])
     ctx = with_shipped(
-        MethodContext({}, hull, intrinsics, DEFAULT_EPS, EPISODE_VIEWS, InfoGainSettings())
+        MethodContext({}, setcover, intrinsics, DEFAULT_EPS, EPISODE_VIEWS, InfoGainSettings()),
+        [method],
     )
     # The generator of nbv.scan.method.policy_rng.
     return METHODS[method].build(ctx, named_rng(0, "plan", method))(state)

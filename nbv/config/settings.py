@@ -7,7 +7,7 @@ A settings dataclass, nested like its YAML file, names each key, its type, its d
   OmegaConf holds, and the same defaults), registered for the YAML's defaults list, so that hydra
   refuses an unknown key or a value of the wrong type while it composes;
 - :func:`build`: the settings object made from a composed config, every range checked, the
-  message of a bad value naming its key path (``hull.samples=0: must be an integer >= 1``);
+  message of a bad value naming its key path (``setcover.n_samp=0: must be an integer >= 1``);
 - :func:`check_ranges`: the same range checks, for ``__post_init__`` (a settings object made in
   code is checked as one made from a config).
 

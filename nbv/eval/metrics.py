@@ -91,7 +91,7 @@ class Metric:
 
     @property
     def summary_key(self) -> str:
-        """Its key in a group's summary (:func:`nbv.eval.metric_tables.summaries`): a censored
+        """Its key in a group's summary (:func:`nbv.eval.statistics.summaries`): a censored
         metric's restricted count, else its key."""
         return (
             f"restricted_{self.key.rsplit('_', 1)[1]}" if self.aggregate == "censored" else self.key

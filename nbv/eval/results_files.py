@@ -69,7 +69,7 @@ def write_json(evaluation, path: Path) -> None:
 
 
 def metric_columns() -> tuple[str, ...]:
-    """summary.csv's columns of the field's metrics (:func:`nbv.eval.metric_tables.summaries`):
+    """summary.csv's columns of the field's metrics (:func:`nbv.eval.statistics.summaries`):
     the metrics aggregated by their mean (:func:`nbv.eval.metrics.mean_keys`); ``views_to_<n>``
     the mean over uncensored episodes, ``censored_<n>`` how many were censored,
     ``restricted_<n>`` the mean with a censored episode counted ``n_views + 1``; ``stage_<s>``

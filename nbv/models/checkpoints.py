@@ -10,7 +10,7 @@ from typing import Any
 import torch
 from torch import Tensor
 
-from nbv.models.config import PCNBVConfig
+from nbv.models.networks import network_class, network_config_class
 from nbv.models.pcnbv import PCNBV
 from nbv.utils.atomic import atomic_path
 
@@ -132,15 +132,17 @@ def load_checkpoint(
     """
     path = Path(path)
     payload = read_payload(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "PCNBV", map_location)
+    # A network other than PCNBV (nbv.models.networks) records its name; PCNBV's never did.
+    name = payload["extra"].get("network", "pcnbv") if isinstance(payload["extra"], dict) else ""
     try:
-        config = PCNBVConfig.from_dict(payload["config"])
+        config = network_config_class(name).from_dict(payload["config"])
     except (TypeError, ValueError) as e:
         raise CheckpointError(f"checkpoint {path} has an invalid config: {e}") from e
     if n_views is not None and config.n_views != n_views:
         raise CheckpointError(
             f"checkpoint {path} is a network for {config.n_views} views, expected {n_views}"
         )
-    model = PCNBV(config)
+    model = network_class(name)(config)
     try:
         model.load_state_dict(payload["state_dict"], strict=True)
     except (RuntimeError, TypeError, AttributeError) as e:

@@ -104,6 +104,7 @@ def for_inference(model: PCNBV, precision: str = "fp32") -> PCNBV | InferencePCN
     Args:
         model: a PCNBV, not modified.
         precision: a :data:`PRECISIONS` name; run the copy under :func:`autocast` with it.
+            Another declared network (:mod:`nbv.models.networks`) is copied as it is.
 
     Returns:
         The copy, in eval mode, on the model's device.
@@ -111,6 +112,8 @@ def for_inference(model: PCNBV, precision: str = "fp32") -> PCNBV | InferencePCN
     device = next(model.parameters()).device
     bf16 = resolve_precision(precision, device) == "bf16"
     out = copy.deepcopy(model).eval().requires_grad_(False)
+    if not isinstance(model, PCNBV):  # another declared network runs as it is
+        return out
     for module in out.modules():
         if isinstance(module, Pointwise) and module.norm is not None:
             norm, old = module.norm, module.linear

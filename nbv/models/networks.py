@@ -24,6 +24,11 @@ TRAINERS = ("train", "train.conditioned", "train.completion")
 class Network:
     """One network.
 
+    A network of ``python -m train`` (trainer ``train``) has a config with ``n_views`` (one
+    output per view), ``to_dict()`` and ``from_dict(dict)`` (its checkpoints store it), and
+    ``forward(points (B, N, 3), view_state (B, V)) -> (B, V)`` scores; its checkpoints record
+    its name, and :func:`nbv.models.checkpoints.load_checkpoint` builds it by that name.
+
     Attributes:
         name: its name (``model.network`` of ``python -m train``).
         summary: one line: what it reads and what it outputs.
@@ -89,9 +94,14 @@ def _attribute(path: str) -> Any:
     return getattr(importlib.import_module(module), attribute)
 
 
+def network_config_class(name: str) -> type:
+    """The sizes' dataclass of network ``name``."""
+    return _attribute(network(name).config)
+
+
 def network_config(name: str, **sizes: Any) -> Any:
     """The sizes' dataclass of network ``name`` with ``sizes`` (the others its defaults)."""
-    return _attribute(network(name).config)(**sizes)
+    return network_config_class(name)(**sizes)
 
 
 def network_class(name: str) -> type:

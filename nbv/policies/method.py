@@ -30,7 +30,6 @@ from nbv.setcover.settings import SetCoverSettings
 CHECKS = ("random_cloud", "permuted_state", "random_hull", "position_noise")
 #: The scores a method may be made to raise (:attr:`Method.score`).
 SCORES = ("coverage", "vig")
-#: The shipped weights' name of the completion network (``python -m train.completion``).
 
 
 @dataclass(frozen=True)
@@ -40,12 +39,12 @@ class MethodContext:
     Attributes:
         networks: network method name -> a loaded :class:`NetworkPolicy` (every network the
             built methods run: :attr:`Method.networks`).
-        hull: the convex-hull set cover's settings.
+        setcover: the convex-hull set cover's settings.
         intrinsics: the dataset's camera.
         eps: the dataset's coverage distance (the planner's capture distance: of the raycast
             simulation, and of the analytic one's dilation).
         n_views: views per episode, start view included.
-        volumetric: the information-gain planner's settings.
+        infogain: the information-gain planner's settings.
         traced: the information-gain planner's candidate voxels, shared by the episodes (they
             depend on the viewspace and the settings only).
         scorer: the learned score of ``ig_learned``; None: none given (the commands give the

@@ -55,7 +55,8 @@ def scan_context(settings: ScanSettings, camera: Intrinsics, n_views: int) -> Me
             eps=settings.eps,
             n_views=settings.n_views,
             infogain=settings.infogain,
-        )
+        ),
+        [settings.method],
     )
 
 

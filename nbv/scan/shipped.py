@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from collections.abc import Iterable
 from pathlib import Path
 
 import numpy as np
@@ -78,11 +79,11 @@ class ShippedCompletion:
         return self._completer
 
 
-def with_shipped(ctx: MethodContext) -> MethodContext:
-    """``ctx`` with the shipped learned score and completion network where it has none (the
-    network is loaded on the completion's first call)."""
-    return dataclasses.replace(
-        ctx,
-        scorer=ctx.scorer if ctx.scorer is not None else shipped_scorer(),
-        completion=ctx.completion if ctx.completion is not None else ShippedCompletion(),
-    )
+def with_shipped(ctx: MethodContext, methods: Iterable[str] | None = None) -> MethodContext:
+    """``ctx`` with the shipped learned score and completion network where it has none: the
+    score read when one of ``methods`` (None: any method) ranks with it, the network loaded on
+    the completion's first call."""
+    scored = methods is None or any(METHODS[m].learned_score for m in methods)
+    scorer = ctx.scorer if ctx.scorer is not None or not scored else shipped_scorer()
+    completion = ctx.completion if ctx.completion is not None else ShippedCompletion()
+    return dataclasses.replace(ctx, scorer=scorer, completion=completion)

@@ -1,9 +1,9 @@
 """Network weights shipped with the package (bfloat16; ``python scripts/ship_weights.py``
 writes them).
 
-``<method>.pt`` is used by the evaluator when the method's configured checkpoint does not exist
-(no local training run); its ``extra["shipped"]`` records the command that trained it and the
-dataset's identity.
+``<method>.pt`` is used by the evaluator and the planner when the method's configured checkpoint
+does not exist (no local training run; :func:`nbv.scan.shipped.resolve_weights`); its
+``extra["shipped"]`` records the command that trained it and the dataset's identity.
 """
 
 from __future__ import annotations
