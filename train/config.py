@@ -103,12 +103,14 @@ class ModelSettings:
     )
 
     def __post_init__(self) -> None:
-        if self.network in NETWORKS and NETWORKS[self.network].trainer != "train":
-            trainer = NETWORKS[self.network].trainer
-            raise ConfigError(f"model.network={self.network}: trained by python -m {trainer}")
-        if self.network not in NETWORKS:
+        declared = NETWORKS.get(self.network)
+        if declared is None:
             raise ConfigError(
                 f"model.network={self.network!r}: not declared; declared: {', '.join(NETWORKS)}"
+            )
+        if declared.trainer != "train":
+            raise ConfigError(
+                f"model.network={self.network}: trained by python -m {declared.trainer}"
             )
 
 

@@ -279,8 +279,9 @@ class EvalSettings:
             raise EvalConfigError(
                 f"checkpoints: no entry for {missing}; give checkpoints.<method>=<path of best.pt>"
             )
+        prepared = prepared_datasets()
         for name in self.datasets:
-            source = prepared_datasets().get(name)
+            source = prepared.get(name)
             if source and MESH_SOURCES[source].installed is None and self.mesh_dir is None:
                 raise EvalConfigError(f"dataset={name} needs mesh_dir=<folder of mesh files>")
         check_ranges(self)
